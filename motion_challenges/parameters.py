@@ -1,0 +1,150 @@
+# Copyright 2026 motion_challenges contributors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Declare a node's parameters from one table and refuse bad values at start.
+
+Each parameter gets a ParameterDescriptor with its description and, for numbers, its range, so
+``ros2 param describe`` tells users what a value means.  Values are then checked here rather
+than left to rclpy, so that ``-p angle_deg:=90`` (an integer) is accepted for a floating-point
+parameter and every refusal names the parameter, its range and the value given.
+"""
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+import math
+from types import SimpleNamespace
+
+from rcl_interfaces.msg import FloatingPointRange
+from rcl_interfaces.msg import IntegerRange
+from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.parameter import Parameter
+
+
+class ParameterError(ValueError):
+    """A parameter was given a value the node cannot run with."""
+
+
+@dataclass(frozen=True)
+class Spec:
+    """
+    One parameter: name, default (its type decides the parameter's type) and meaning.
+
+    A default of None declares the parameter without a value (it is then None unless given at
+    start); ``kind`` names its type.  ``low``/``high`` bound numbers (and every element of a
+    number array); ``low_open`` excludes ``low`` itself (a speed must be > 0).  ``choices``
+    restricts strings.  ``length`` fixes the size of an array.
+    """
+
+    name: str
+    default: object
+    description: str
+    low: float = None
+    high: float = None
+    low_open: bool = False
+    choices: tuple = ()
+    length: int = None
+    kind: type = None
+
+    @property
+    def type_(self):
+        if self.kind is not None:
+            return self.kind
+        if isinstance(self.default, list):
+            return list
+        return type(self.default)
+
+    def descriptor(self):
+        descriptor = ParameterDescriptor(
+            name=self.name, description=self.description, dynamic_typing=True,
+            additional_constraints=self.constraints())
+        if self.low is not None and self.high is not None:
+            if self.type_ in (float, list):
+                descriptor.floating_point_range = [FloatingPointRange(
+                    from_value=float(self.low), to_value=float(self.high))]
+            elif self.type_ is int:
+                descriptor.integer_range = [IntegerRange(
+                    from_value=int(self.low), to_value=int(self.high), step=1)]
+        return descriptor
+
+    def constraints(self):
+        parts = []
+        if self.length is not None:
+            parts.append(f'{self.length} values')
+        if self.high is not None:
+            parts.append(self._range_text())
+        if self.choices:
+            parts.append('one of ' + ', '.join(self.choices))
+        return '; '.join(parts)
+
+    def check(self, value):
+        """Return value converted to this parameter's type, or raise ParameterError."""
+        if value is None and self.default is None:
+            return None
+        if self.type_ is bool:
+            if not isinstance(value, bool):
+                raise self._error(value, 'must be true or false')
+            return value
+        if self.type_ is str:
+            if not isinstance(value, str):
+                raise self._error(value, 'must be a string')
+            if self.choices and value not in self.choices:
+                raise self._error(value, 'must be one of ' + ', '.join(self.choices))
+            return value
+        if self.type_ is list:
+            if not isinstance(value, Sequence) or isinstance(value, str):
+                raise self._error(value, 'must be a list of numbers')
+            if self.length is not None and len(value) != self.length:
+                raise self._error(value, f'must have exactly {self.length} values')
+            return [self._number(v, float) for v in value]
+        return self._number(value, self.type_)
+
+    def _number(self, value, type_):
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise self._error(value, 'must be a number')
+        if type_ is int and not isinstance(value, int):
+            raise self._error(value, 'must be an integer')
+        if type_ is float:
+            value = float(value)
+            if not math.isfinite(value):
+                raise self._error(value, 'must be a finite number')
+        too_low = self.low is not None and (
+            value < self.low or (self.low_open and value == self.low))
+        if too_low or (self.high is not None and value > self.high):
+            raise self._error(value, self._range_text())
+        return value
+
+    def _range_text(self):
+        return f'must be in {"(" if self.low_open else "["}{self.low}, {self.high}]'
+
+    def _error(self, value, why):
+        return ParameterError(f"parameter '{self.name}' {why}; got {value!r}")
+
+
+def declare(node, specs):
+    """
+    Declare every Spec on node and return the checked values as attributes.
+
+    Raises ParameterError naming the first parameter whose value is unusable.
+    """
+    values = SimpleNamespace()
+    for spec in specs:
+        parameter = node.declare_parameter(spec.name, spec.default, spec.descriptor())
+        value = spec.check(parameter.value)
+        if value is not None and (value != parameter.value
+                                  or type(value) is not type(parameter.value)):
+            # Store the converted value so `ros2 param get` shows what the node runs with.
+            node.set_parameters([Parameter(spec.name, value=value)])
+        setattr(values, spec.name, value)
+    return values

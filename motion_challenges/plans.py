@@ -1,0 +1,262 @@
+# Copyright 2026 motion_challenges contributors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Velocity plans for the timed motions and the speed law of the closed-loop ones (no ROS imports).
+
+Units are SI (m, rad, s) and signs follow REP 103: counter-clockwise is positive, so a clockwise
+turn has a negative angular speed.
+"""
+
+import bisect
+from dataclasses import dataclass
+import math
+
+from motion_challenges.angles import normalize_angle
+
+# ROS time has nanosecond resolution, so a time within 1 ns of a segment boundary is on it.
+# Snapping there keeps float noise (15 * 0.1 != 1.5) from producing a sliver of a segment.
+TIME_TOLERANCE = 1e-9
+
+
+def _require_finite(name, value):
+    if not math.isfinite(value):
+        raise ValueError(f'{name} must be finite, got {value!r}')
+
+
+def _require_positive(name, value):
+    if not (math.isfinite(value) and value > 0.0):
+        raise ValueError(f'{name} must be positive and finite, got {value!r}')
+
+
+@dataclass(frozen=True)
+class Segment:
+    """Constant velocity command (linear m/s, angular rad/s) held for duration seconds."""
+
+    linear: float
+    angular: float
+    duration: float
+
+    def __post_init__(self):
+        _require_finite('linear speed', self.linear)
+        _require_finite('angular speed', self.angular)
+        _require_positive('segment duration', self.duration)
+
+
+def pause(duration):
+    """Return a segment that stands still for duration seconds."""
+    return Segment(0.0, 0.0, duration)
+
+
+class PiecewisePlan:
+    """
+    A sequence of constant velocity segments starting at t = 0, optionally repeated forever.
+
+    Before t = 0 and after the end the command is zero. ``average(t, t + period)`` is what a
+    timer tick at t should publish: the commanded integral then equals the plan's exactly, even
+    when a segment ends in the middle of a tick.
+    """
+
+    def __init__(self, segments, repeat=False):
+        self.segments = tuple(segments)
+        if not self.segments:
+            raise ValueError('a plan needs at least one segment')
+        for segment in self.segments:
+            if not isinstance(segment, Segment):
+                raise TypeError(f'expected a Segment, got {segment!r}')
+        self.repeat = bool(repeat)
+        # _knots[i] is the start time of segment i; _linear[i], _angular[i] the integrals so far.
+        self._knots = [0.0]
+        self._linear = [0.0]
+        self._angular = [0.0]
+        for segment in self.segments:
+            self._knots.append(self._knots[-1] + segment.duration)
+            self._linear.append(self._linear[-1] + segment.linear * segment.duration)
+            self._angular.append(self._angular[-1] + segment.angular * segment.duration)
+        self.cycle_duration = self._knots[-1]
+
+    @property
+    def duration(self):
+        """Total duration in seconds (math.inf for a repeating plan)."""
+        return math.inf if self.repeat else self.cycle_duration
+
+    def finished(self, t):
+        """Return True once the plan commands zero from t on (never for a repeating plan)."""
+        return not self.repeat and t >= self.cycle_duration - TIME_TOLERANCE
+
+    def _segment_index(self, t):
+        """Index of the segment active at t in [0, cycle_duration], snapping to boundaries."""
+        i = bisect.bisect_right(self._knots, t) - 1
+        i = min(max(i, 0), len(self.segments) - 1)
+        if self._knots[i + 1] - t <= TIME_TOLERANCE:
+            i += 1
+        return i
+
+    def _within_cycle(self, t):
+        """Split t >= 0 into (completed cycles, time into the current cycle)."""
+        if not self.repeat:
+            return 0, min(t, self.cycle_duration)
+        cycles = math.floor(t / self.cycle_duration)
+        offset = t - cycles * self.cycle_duration
+        return cycles, min(max(offset, 0.0), self.cycle_duration)
+
+    def _integral_to(self, t):
+        """Integral of the command over [0, t]."""
+        if t <= TIME_TOLERANCE:
+            return 0.0, 0.0
+        cycles, offset = self._within_cycle(t)
+        i = self._segment_index(offset)
+        linear = cycles * self._linear[-1] + self._linear[i]
+        angular = cycles * self._angular[-1] + self._angular[i]
+        if i < len(self.segments):
+            elapsed = offset - self._knots[i]
+            if elapsed > TIME_TOLERANCE:
+                linear += self.segments[i].linear * elapsed
+                angular += self.segments[i].angular * elapsed
+        return linear, angular
+
+    def command_at(self, t):
+        """Return the (linear, angular) command active at time t."""
+        if t < -TIME_TOLERANCE or self.finished(t):
+            return 0.0, 0.0
+        _, offset = self._within_cycle(max(t, 0.0))
+        segment = self.segments[self._segment_index(offset) % len(self.segments)]
+        return segment.linear, segment.angular
+
+    def integral(self, t0, t1):
+        """Return the command integrated over [t0, t1]: metres and radians."""
+        _require_finite('t0', t0)
+        _require_finite('t1', t1)
+        if t1 < t0:
+            raise ValueError(f'window end {t1!r} is before its start {t0!r}')
+        linear0, angular0 = self._integral_to(t0)
+        linear1, angular1 = self._integral_to(t1)
+        return linear1 - linear0, angular1 - angular0
+
+    def average(self, t0, t1):
+        """Return the mean (linear, angular) command over the window [t0, t1)."""
+        if not t1 > t0:
+            raise ValueError(f'window [{t0!r}, {t1!r}) is empty')
+        linear, angular = self.integral(t0, t1)
+        width = t1 - t0
+        return linear / width, angular / width
+
+
+def rotation_plan(angular_speed, angle, clockwise):
+    """Turn in place by angle (rad) at angular_speed (rad/s), clockwise meaning negative."""
+    _require_positive('angular speed', angular_speed)
+    _require_positive('angle', angle)
+    signed_speed = -angular_speed if clockwise else angular_speed
+    return PiecewisePlan([Segment(0.0, signed_speed, angle / angular_speed)])
+
+
+def circle_plan(linear_speed, angular_speed, half_period, cycles):
+    """
+    Drive an arc at (v, w) for half_period, then retrace it at (-v, -w); repeat.
+
+    cycles > 0 gives that many back-and-forth cycles; cycles == 0 repeats forever.
+    """
+    _require_positive('half period', half_period)
+    if isinstance(cycles, bool) or not isinstance(cycles, int) or cycles < 0:
+        raise ValueError(f'cycles must be a non-negative integer, got {cycles!r}')
+    there = Segment(linear_speed, angular_speed, half_period)
+    back = Segment(-linear_speed, -angular_speed, half_period)
+    if cycles == 0:
+        return PiecewisePlan([there, back], repeat=True)
+    return PiecewisePlan([there, back] * cycles)
+
+
+def out_and_back_plan(goal_distance, linear_speed, goal_angle, angular_speed, legs,
+                      pause_duration):
+    """
+    Build rbx1's timed out-and-back: per leg drive, pause, turn counter-clockwise, pause.
+
+    A pause_duration of 0 leaves the pauses out.
+    """
+    _require_positive('goal distance', goal_distance)
+    _require_positive('linear speed', linear_speed)
+    _require_positive('goal angle', goal_angle)
+    _require_positive('angular speed', angular_speed)
+    if isinstance(legs, bool) or not isinstance(legs, int) or legs < 1:
+        raise ValueError(f'legs must be a positive integer, got {legs!r}')
+    if not (math.isfinite(pause_duration) and pause_duration >= 0.0):
+        raise ValueError(f'pause duration must be >= 0 and finite, got {pause_duration!r}')
+    stop = [pause(pause_duration)] if pause_duration > 0.0 else []
+    leg = ([Segment(linear_speed, 0.0, goal_distance / linear_speed)] + stop
+           + [Segment(0.0, angular_speed, goal_angle / angular_speed)] + stop)
+    return PiecewisePlan(leg * legs)
+
+
+def approach_speed(remaining, max_speed, min_speed, accel, period):
+    """
+    Return the speed for a closed-loop motion with remaining distance or angle to go.
+
+    Nav2 Spin's law clamp(sqrt(2 * accel * remaining), min_speed, max_speed), capped at
+    remaining / period so the last control period ends on the goal instead of overshooting.
+    """
+    if math.isnan(remaining):
+        raise ValueError('remaining must be a number, got nan')
+    _require_positive('max speed', max_speed)
+    _require_positive('min speed', min_speed)
+    _require_positive('acceleration', accel)
+    _require_positive('period', period)
+    if min_speed > max_speed:
+        raise ValueError(f'min speed {min_speed!r} is above max speed {max_speed!r}')
+    if remaining <= 0.0:
+        return 0.0
+    speed = min(max(math.sqrt(2.0 * accel * remaining), min_speed), max_speed)
+    return min(speed, remaining / period)
+
+
+def _sinc(x):
+    # The series avoids 0 / 0 at x = 0 and agrees with sin(x) / x to double precision below 1e-4.
+    if abs(x) < 1e-4:
+        return 1.0 - x * x / 6.0
+    return math.sin(x) / x
+
+
+def _advance(x, y, yaw, linear, angular, dt):
+    """Integrate the exact unicycle arc; no case split, so no jump as angular -> 0."""
+    turn = angular * dt
+    # sin(a + b) - sin(a) = 2 cos(a + b/2) sin(b/2), so the arc's chord is a straight step
+    # along the mid-heading, shortened by sinc(turn / 2).
+    chord = linear * dt * _sinc(0.5 * turn)
+    mid = yaw + 0.5 * turn
+    return x + chord * math.cos(mid), y + chord * math.sin(mid), yaw + turn
+
+
+def final_pose(plan, x=0.0, y=0.0, yaw=0.0, t_end=None):
+    """
+    Return the pose (x, y, yaw) after following plan from (x, y, yaw) until t_end.
+
+    t_end defaults to the end of the plan and is required for a repeating plan. The yaw is
+    normalized to (-pi, pi].
+    """
+    if t_end is None:
+        if plan.repeat:
+            raise ValueError('a repeating plan needs t_end')
+        t_end = plan.duration
+    if not (math.isfinite(t_end) and t_end >= 0.0):
+        raise ValueError(f't_end must be >= 0 and finite, got {t_end!r}')
+    t = 0.0
+    while t < t_end and not plan.finished(t):
+        for segment in plan.segments:
+            dt = min(segment.duration, t_end - t)
+            if dt <= 0.0:
+                break
+            x, y, yaw = _advance(x, y, yaw, segment.linear, segment.angular, dt)
+            t += segment.duration
+        if not plan.repeat:
+            break
+    return x, y, normalize_angle(yaw)

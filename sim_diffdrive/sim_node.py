@@ -1,0 +1,235 @@
+# Copyright 2026 motion_challenges contributors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The ``unicycle_sim`` node: Twist in on ``cmd_vel``, Odometry out on ``odom``.
+
+The pose is integrated exactly and piecewise: brought up to the moment each command arrives
+before the command takes effect, so accuracy does not depend on ``rate_hz``.  With
+``publish_clock`` the node owns time: it steps a simulated clock by 1/``rate_hz`` seconds per
+step, ``real_time_factor`` times faster than the wall clock, and publishes it on ``/clock``
+for nodes that run with ``use_sim_time``.
+"""
+
+import math
+
+from geometry_msgs.msg import Twist
+from geometry_msgs.msg import TwistStamped
+from nav_msgs.msg import Odometry
+from rclpy.clock import Clock
+from rclpy.clock import ClockType
+from rclpy.node import Node
+from rclpy.qos import QoSProfile
+from rclpy.qos import ReliabilityPolicy
+from rclpy.time import Time
+from rosgraph_msgs.msg import Clock as ClockMsg
+from std_srvs.srv import Empty
+
+from motion_challenges.angles import quaternion_from_yaw
+from motion_challenges.parameters import declare
+from motion_challenges.parameters import ParameterError
+from motion_challenges.parameters import Spec
+from motion_challenges.runtime import run
+from sim_diffdrive.kinematics import UnicycleModel
+
+_NS = 1_000_000_000
+_POSITION_LIMIT = 1e6
+
+PARAMETERS = (
+    Spec('rate_hz', 50.0, 'Odometry publish rate [Hz]; with publish_clock also the clock step.',
+         low=0.0, high=1000.0, low_open=True),
+    Spec('cmd_vel_timeout', 0.5,
+         'Stop the robot when no cmd_vel arrived for this long [s]; 0 keeps the last command.',
+         low=0.0, high=3600.0),
+    Spec('odom_frame_id', 'odom', 'Frame of the odometry pose (REP 105).'),
+    Spec('base_frame_id', 'base_footprint', 'Child frame of the odometry (REP 105).'),
+    Spec('initial_x', 0.0, 'Start position x in the odom frame [m].',
+         low=-_POSITION_LIMIT, high=_POSITION_LIMIT),
+    Spec('initial_y', 0.0, 'Start position y in the odom frame [m].',
+         low=-_POSITION_LIMIT, high=_POSITION_LIMIT),
+    Spec('initial_yaw', 0.0, 'Start heading in the odom frame [rad], counter-clockwise from x.',
+         low=-100.0, high=100.0),
+    Spec('max_linear_speed', 0.0, 'Largest |linear.x| applied [m/s]; 0 = unlimited.',
+         low=0.0, high=1000.0),
+    Spec('max_angular_speed', 0.0, 'Largest |angular.z| applied [rad/s]; 0 = unlimited.',
+         low=0.0, high=1000.0),
+    Spec('max_linear_accel', 0.0, 'Largest linear acceleration [m/s^2]; 0 = unlimited.',
+         low=0.0, high=1000.0),
+    Spec('max_angular_accel', 0.0, 'Largest angular acceleration [rad/s^2]; 0 = unlimited.',
+         low=0.0, high=1000.0),
+    Spec('pose_covariance_diagonal', [0.001, 0.001, 0.001, 0.001, 0.001, 0.01],
+         'Diagonal of the odometry pose covariance (x, y, z, roll, pitch, yaw).',
+         low=0.0, high=1e9, length=6),
+    Spec('twist_covariance_diagonal', [0.001, 0.001, 0.001, 0.001, 0.001, 0.01],
+         'Diagonal of the odometry twist covariance (x, y, z, roll, pitch, yaw).',
+         low=0.0, high=1e9, length=6),
+    Spec('publish_clock', False,
+         'Own time: publish /clock so nodes with use_sim_time run on simulated time.'),
+    Spec('real_time_factor', 1.0,
+         'With publish_clock: simulated seconds per wall second (e.g. 20.0).',
+         low=0.0, high=10000.0, low_open=True),
+    Spec('stamped', False, 'Subscribe to geometry_msgs/TwistStamped instead of Twist.'),
+)
+
+
+def _covariance(diagonal):
+    covariance = [0.0] * 36
+    for i, value in enumerate(diagonal):
+        covariance[7 * i] = value
+    return covariance
+
+
+class UnicycleSim(Node):
+    """Simulate one unicycle robot (see the module docstring)."""
+
+    def __init__(self, **kwargs):
+        super().__init__('unicycle_sim', **kwargs)
+        self.params = declare(self, PARAMETERS)
+        p = self.params
+        if p.publish_clock and self.get_parameter('use_sim_time').value:
+            raise ParameterError(
+                "parameter 'publish_clock' is true, so this node owns time: "
+                "'use_sim_time' must be false for it")
+        self.model = UnicycleModel(
+            p.initial_x, p.initial_y, p.initial_yaw,
+            p.max_linear_speed, p.max_angular_speed, p.max_linear_accel, p.max_angular_accel)
+        self._step_ns = round(_NS / p.rate_hz)
+        self._pose_covariance = _covariance(p.pose_covariance_diagonal)
+        self._twist_covariance = _covariance(p.twist_covariance_diagonal)
+        self._timeout_ns = round(p.cmd_vel_timeout * _NS)
+
+        # Simulated time in integer nanoseconds so many steps add up without rounding drift.
+        self._sim_ns = 0
+        self._integrated_ns = None
+        self._last_cmd_ns = None
+
+        self._odom_pub = self.create_publisher(Odometry, 'odom', 10)
+        if p.stamped:
+            self.create_subscription(TwistStamped, 'cmd_vel', self._on_twist_stamped, 10)
+        else:
+            self.create_subscription(Twist, 'cmd_vel', self._on_twist, 10)
+        self.create_service(Empty, '~/reset', self._on_reset)
+
+        if p.publish_clock:
+            self._clock_pub = self.create_publisher(
+                ClockMsg, '/clock', QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE))
+            self._integrated_ns = 0
+            self.create_timer(self._step_ns / _NS / p.real_time_factor, self._on_clock_step,
+                              clock=Clock(clock_type=ClockType.STEADY_TIME))
+            self._publish_clock()
+        else:
+            self._clock_pub = None
+            self.create_timer(self._step_ns / _NS, self._on_odom_timer)
+        self.get_logger().info(
+            f'Unicycle at ({p.initial_x:.3f}, {p.initial_y:.3f}, {p.initial_yaw:.3f} rad), '
+            f'odom at {p.rate_hz:g} Hz, cmd_vel timeout {p.cmd_vel_timeout:g} s'
+            + (f', publishing /clock at {p.real_time_factor:g}x real time'
+               if p.publish_clock else ''))
+
+    # -- time -------------------------------------------------------------------------------
+
+    def now_ns(self):
+        """Return the current simulated time in nanoseconds."""
+        if self._clock_pub is not None:
+            return self._sim_ns
+        return self.get_clock().now().nanoseconds
+
+    def _advance_to(self, now_ns):
+        """Integrate the pose up to now_ns, stopping the robot at a cmd_vel timeout on the way."""
+        if self._integrated_ns is None or now_ns < self._integrated_ns:
+            # First call, or the clock jumped back (e.g. a replayed /clock): restart from here.
+            self._integrated_ns = now_ns
+            return
+        deadline = None
+        if self._timeout_ns > 0 and self._last_cmd_ns is not None and self._moving():
+            deadline = self._last_cmd_ns + self._timeout_ns
+        if deadline is not None and deadline <= now_ns:
+            self.model.advance(max(0, deadline - self._integrated_ns) / _NS)
+            self._integrated_ns = max(self._integrated_ns, deadline)
+            self.model.command(0.0, 0.0)
+            self._last_cmd_ns = None
+            self.get_logger().warning(
+                f'No cmd_vel for {self.params.cmd_vel_timeout:g} s: stopping the robot')
+        self.model.advance((now_ns - self._integrated_ns) / _NS)
+        self._integrated_ns = now_ns
+
+    def _moving(self):
+        m = self.model
+        return bool(m.target_linear or m.target_angular or m.linear or m.angular)
+
+    def _on_clock_step(self):
+        self._sim_ns += self._step_ns
+        self._advance_to(self._sim_ns)
+        self._publish_clock()
+        self._publish_odom()
+
+    def _on_odom_timer(self):
+        self._advance_to(self.now_ns())
+        self._publish_odom()
+
+    def _publish_clock(self):
+        msg = ClockMsg()
+        msg.clock = Time(nanoseconds=self._sim_ns).to_msg()
+        self._clock_pub.publish(msg)
+
+    # -- commands ---------------------------------------------------------------------------
+
+    def _on_twist_stamped(self, msg):
+        self._on_twist(msg.twist)
+
+    def _on_twist(self, twist):
+        linear = twist.linear.x
+        angular = twist.angular.z
+        if not (math.isfinite(linear) and math.isfinite(angular)):
+            self.get_logger().warning(
+                f'Refusing cmd_vel with a non-finite value (linear.x={linear}, '
+                f'angular.z={angular}); keeping the last command',
+                throttle_duration_sec=1.0)
+            return
+        now_ns = self.now_ns()
+        self._advance_to(now_ns)
+        self.model.command(linear, angular)
+        self._last_cmd_ns = now_ns
+
+    def _on_reset(self, request, response):
+        p = self.params
+        self._advance_to(self.now_ns())
+        self.model.reset(p.initial_x, p.initial_y, p.initial_yaw)
+        self._last_cmd_ns = None
+        self.get_logger().info('Reset to the initial pose')
+        self._publish_odom()
+        return response
+
+    # -- odometry ---------------------------------------------------------------------------
+
+    def _publish_odom(self):
+        m = self.model
+        msg = Odometry()
+        msg.header.stamp = Time(nanoseconds=self._integrated_ns).to_msg()
+        msg.header.frame_id = self.params.odom_frame_id
+        msg.child_frame_id = self.params.base_frame_id
+        msg.pose.pose.position.x = m.x
+        msg.pose.pose.position.y = m.y
+        q = msg.pose.pose.orientation
+        q.x, q.y, q.z, q.w = quaternion_from_yaw(m.yaw)
+        msg.pose.covariance = self._pose_covariance
+        msg.twist.twist.linear.x = m.linear
+        msg.twist.twist.angular.z = m.angular
+        msg.twist.covariance = self._twist_covariance
+        self._odom_pub.publish(msg)
+
+
+def main(args=None):
+    """Run the simulator until interrupted; returns the exit code."""
+    return run(UnicycleSim, args)
