@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import math
 
 from motion_challenges.angles import normalize_angle
+from sim_diffdrive.kinematics import integrate
 
 # ROS time has nanosecond resolution, so a time within 1 ns of a segment boundary is on it.
 # Snapping there keeps float noise (15 * 0.1 != 1.5) from producing a sliver of a segment.
@@ -219,23 +220,6 @@ def approach_speed(remaining, max_speed, min_speed, accel, period):
     return min(speed, remaining / period)
 
 
-def _sinc(x):
-    # The series avoids 0 / 0 at x = 0 and agrees with sin(x) / x to double precision below 1e-4.
-    if abs(x) < 1e-4:
-        return 1.0 - x * x / 6.0
-    return math.sin(x) / x
-
-
-def _advance(x, y, yaw, linear, angular, dt):
-    """Integrate the exact unicycle arc; no case split, so no jump as angular -> 0."""
-    turn = angular * dt
-    # sin(a + b) - sin(a) = 2 cos(a + b/2) sin(b/2), so the arc's chord is a straight step
-    # along the mid-heading, shortened by sinc(turn / 2).
-    chord = linear * dt * _sinc(0.5 * turn)
-    mid = yaw + 0.5 * turn
-    return x + chord * math.cos(mid), y + chord * math.sin(mid), yaw + turn
-
-
 def final_pose(plan, x=0.0, y=0.0, yaw=0.0, t_end=None):
     """
     Return the pose (x, y, yaw) after following plan from (x, y, yaw) until t_end.
@@ -255,7 +239,7 @@ def final_pose(plan, x=0.0, y=0.0, yaw=0.0, t_end=None):
             dt = min(segment.duration, t_end - t)
             if dt <= 0.0:
                 break
-            x, y, yaw = _advance(x, y, yaw, segment.linear, segment.angular, dt)
+            x, y, yaw = integrate(x, y, yaw, segment.linear, segment.angular, dt)
             t += segment.duration
         if not plan.repeat:
             break

@@ -24,42 +24,29 @@ import math
 
 from motion_challenges.angles import normalize_angle
 
-# Below this |w * dt| the arc formulas lose precision; the series below is exact to ~1e-18.
-_SMALL_TURN = 1e-4
+# Below this |x| the series for sin(x)/x is exact to double precision and avoids 0/0.
+_SMALL_ANGLE = 1e-4
 
 
-def _sinc_terms(phi):
-    """
-    Return (sin(phi)/phi, (1 - cos(phi))/phi), continuous through phi = 0.
-
-    The Taylor series is used for small phi, where the closed forms cancel catastrophically.
-    """
-    if abs(phi) < _SMALL_TURN:
-        phi2 = phi * phi
-        return 1.0 - phi2 / 6.0, phi * (0.5 - phi2 / 24.0)
-    return math.sin(phi) / phi, (1.0 - math.cos(phi)) / phi
+def _sinc(x):
+    """Return sin(x)/x, continuous through x = 0."""
+    if abs(x) < _SMALL_ANGLE:
+        return 1.0 - x * x / 6.0
+    return math.sin(x) / x
 
 
 def integrate(x, y, yaw, linear, angular, dt):
     """
-    Advance a pose by holding (linear, angular) for dt seconds.
+    Advance a pose by holding (linear, angular) for dt seconds along the exact arc.
 
-    Returns the new (x, y, yaw) with yaw wrapped to (-pi, pi].  The chord of the arc is
-    v*dt*sinc(w*dt) long and leaves at the mean heading, which is exact for any w*dt and
-    becomes the straight line smoothly as w -> 0.
+    sin(a + b) - sin(a) = 2 cos(a + b/2) sin(b/2): the arc's chord is a straight step along the
+    mid-heading, shortened by sinc(turn/2).  No case split, so no jump as angular -> 0.
+    Returns the new (x, y, yaw) with yaw wrapped to (-pi, pi].
     """
-    phi = angular * dt
-    along, across = _sinc_terms(phi)
-    distance = linear * dt
-    cos_yaw = math.cos(yaw)
-    sin_yaw = math.sin(yaw)
-    dx_body = distance * along
-    dy_body = distance * across
-    return (
-        x + dx_body * cos_yaw - dy_body * sin_yaw,
-        y + dx_body * sin_yaw + dy_body * cos_yaw,
-        normalize_angle(yaw + phi),
-    )
+    turn = angular * dt
+    chord = linear * dt * _sinc(0.5 * turn)
+    mid = yaw + 0.5 * turn
+    return x + chord * math.cos(mid), y + chord * math.sin(mid), normalize_angle(yaw + turn)
 
 
 def limit_command(target, current, max_speed, max_accel, dt):

@@ -125,11 +125,13 @@ class UnicycleSim(Node):
             self._clock_pub = self.create_publisher(
                 ClockMsg, '/clock', QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE))
             self._integrated_ns = 0
-            self.create_timer(self._step_ns / _NS / p.real_time_factor, self._on_clock_step,
-                              clock=Clock(clock_type=ClockType.STEADY_TIME))
+            self.clock_timer = self.create_timer(
+                self._step_ns / _NS / p.real_time_factor, self.step,
+                clock=Clock(clock_type=ClockType.STEADY_TIME))
             self._publish_clock()
         else:
             self._clock_pub = None
+            self.clock_timer = None
             self.create_timer(self._step_ns / _NS, self._on_odom_timer)
         self.get_logger().info(
             f'Unicycle at ({p.initial_x:.3f}, {p.initial_y:.3f}, {p.initial_yaw:.3f} rad), '
@@ -168,7 +170,8 @@ class UnicycleSim(Node):
         m = self.model
         return bool(m.target_linear or m.target_angular or m.linear or m.angular)
 
-    def _on_clock_step(self):
+    def step(self):
+        """Advance simulated time by one step and publish /clock and odometry."""
         self._sim_ns += self._step_ns
         self._advance_to(self._sim_ns)
         self._publish_clock()

@@ -1,0 +1,40 @@
+# Two commands on a fresh machine: `make test` and `make demo`.
+#
+# Both create .venv/ with the ROS 2 Jazzy wheels from PyPI and this package installed into it,
+# unless ROS 2 Jazzy is already sourced (ROS_DISTRO=jazzy), in which case its rclpy is used.
+# Afterwards `. .venv/bin/activate` gives a shell where rclpy works, the executables are on
+# PATH and discovery stays on this machine.
+
+SHELL := /bin/bash
+PYTHON ?= python3
+VENV := .venv
+VPY := $(VENV)/bin/python
+STAMP := $(VENV)/.installed
+
+# The Jazzy builds of the ROS wheels (the lower of the two versions PyPI lists for each).
+ROS_WHEELS := ros-rclpy==7.1.6 ros-geometry-msgs==5.3.6 ros-nav-msgs==5.3.6 \
+	ros-std-srvs==5.3.6 ros-rosgraph-msgs==2.0.3 ros-rmw-fastrtps-cpp==8.4.3 \
+	ros-ament-index-python==1.8.1
+ROS_TEST_WHEELS := ros-ament-flake8==0.17.3 ros-ament-pep257==0.17.3
+PY_DEPS := numpy pytest hypothesis colcon-common-extensions matplotlib
+
+.PHONY: venv test demo lint clean
+
+venv: $(STAMP)
+
+$(STAMP): Makefile setup.py package.xml tools/setup_venv.sh
+	PYTHON=$(PYTHON) VENV=$(VENV) ROS_WHEELS="$(ROS_WHEELS)" \
+		ROS_TEST_WHEELS="$(ROS_TEST_WHEELS)" PY_DEPS="$(PY_DEPS)" bash tools/setup_venv.sh
+	touch $@
+
+test: $(STAMP)
+	source $(VENV)/bin/activate && python -m pytest -q test
+
+demo: $(STAMP)
+	source $(VENV)/bin/activate && python tools/demo.py
+
+lint: $(STAMP)
+	source $(VENV)/bin/activate && python -m pytest -q test/test_flake8.py test/test_pep257.py
+
+clean:
+	rm -rf $(VENV) build install log .pytest_cache

@@ -1,0 +1,40 @@
+#!/usr/bin/env bash
+# Create the project's virtual environment (called by the Makefile; see its header).
+set -euo pipefail
+
+: "${PYTHON:=python3}" "${VENV:=.venv}"
+
+if ! "$PYTHON" -c 'import venv, ensurepip' 2>/dev/null; then
+  # Debian and Ubuntu split venv out of the interpreter package.
+  echo "Installing python3-venv (Debian/Ubuntu) ..."
+  apt-get update -qq && apt-get install -y -qq python3-venv >/dev/null
+fi
+
+if [ "${ROS_DISTRO:-}" = "jazzy" ]; then
+  echo "ROS 2 Jazzy is sourced: using its rclpy; the venv sees the system packages."
+  "$PYTHON" -m venv --system-site-packages "$VENV"
+  ros_wheels=""
+else
+  "$PYTHON" -m venv "$VENV"
+  ros_wheels="$ROS_WHEELS $ROS_TEST_WHEELS"
+fi
+
+pip=("$VENV/bin/python" -m pip --disable-pip-version-check -q)
+"${pip[@]}" install --upgrade pip setuptools wheel
+# shellcheck disable=SC2086
+"${pip[@]}" install $ros_wheels $PY_DEPS
+"${pip[@]}" install -e .
+
+# Make `. .venv/bin/activate` a shell where rclpy finds its ament index and talks only locally.
+if ! grep -q 'motion_challenges environment' "$VENV/bin/activate"; then
+  cat >> "$VENV/bin/activate" <<'ACTIVATE'
+
+# motion_challenges environment
+if [ "${ROS_DISTRO:-}" != "jazzy" ]; then
+  export AMENT_PREFIX_PATH="$VIRTUAL_ENV${AMENT_PREFIX_PATH:+:$AMENT_PREFIX_PATH}"
+fi
+export ROS_AUTOMATIC_DISCOVERY_RANGE="${ROS_AUTOMATIC_DISCOVERY_RANGE:-LOCALHOST}"
+export RCUTILS_COLORIZED_OUTPUT="${RCUTILS_COLORIZED_OUTPUT:-0}"
+ACTIVATE
+fi
+echo "Ready: . $VENV/bin/activate"
