@@ -31,16 +31,19 @@ setup(
     # rclpy and the message packages come from ROS 2 (apt's /opt/ros/jazzy or the ros-* wheels
     # the Makefile installs), never from here, so colcon builds this on a ROS machine as is.
     install_requires=['setuptools'],
-    extras_require={'plot': ['matplotlib']},
+    extras_require={'plot': ['matplotlib'], 'test': ['pytest']},
     zip_safe=True,
     maintainer='motion_challenges maintainers',
     maintainer_email='maintainers@motion-challenges.dev',
     description='Classic ROS 1 motion tutorials on ROS 2 Jazzy with an exact unicycle simulator.',
     license='Apache-2.0',
-    tests_require=['pytest'],
     entry_points={
         'console_scripts': [
             'unicycle_sim = sim_diffdrive.sim_node:main',
+            'rotate_robot = motion_challenges.rotate_robot:main',
+            'circle_back_and_forth = motion_challenges.circle_back_and_forth:main',
+            'timed_out_and_back = motion_challenges.timed_out_and_back:main',
+            'odom_out_and_back = motion_challenges.odom_out_and_back:main',
         ],
     },
 )

@@ -102,15 +102,16 @@ class Graph:
         """Count every message sent and handled by the graph's nodes from now on."""
         for node in self.nodes:
             for pub in node.publishers:
-                if pub.topic_name in self._published:
+                if getattr(pub, '_counted', False):
                     continue
-                counter = self._published[pub.topic_name] = [0]
+                counter = self._published.setdefault(pub.topic_name, [0])
                 original = pub.publish
 
                 def publish(msg, original=original, counter=counter):
                     counter[0] += 1
                     original(msg)
                 pub.publish = publish
+                pub._counted = True
             for sub in node.subscriptions:
                 if getattr(sub, '_counted', False):
                     continue

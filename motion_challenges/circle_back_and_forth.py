@@ -1,0 +1,82 @@
+# Copyright 2026 motion_challenges contributors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+``circle_back_and_forth``: drive an arc and retrace it, flipping both signs every half period.
+
+A port of ``move_rob.py``: linear.x = angular.z = 0.5, both flipped every 15 s, so the robot
+drives a 1 m-radius arc and comes back along it.  Unlike the original it publishes one Twist
+with both parts per tick, on ``cmd_vel``, can stop after ``cycles`` and always stops on exit.
+"""
+
+import math
+
+from motion_challenges.motion_node import pose_error_text
+from motion_challenges.motion_node import rate_spec
+from motion_challenges.motion_node import TimedMotion
+from motion_challenges.parameters import Spec
+from motion_challenges.plans import circle_plan
+from motion_challenges.runtime import run
+
+PARAMETERS = (
+    Spec('linear_speed', 0.5, 'Forward speed of the first half period [m/s].',
+         low=0.0, high=10.0, low_open=True),
+    Spec('angular_speed', 0.5, 'Turn rate of the first half period [rad/s], CCW positive.',
+         low=-10.0, high=10.0),
+    Spec('half_period', 15.0, 'Time before both signs flip [s].',
+         low=0.0, high=3600.0, low_open=True),
+    Spec('cycles', 0, 'Out-and-back cycles to drive; 0 = until stopped.', low=0, high=1000000),
+    rate_spec(10.0),
+)
+
+
+class CircleBackAndForth(TimedMotion):
+    """Drive the arc out and back (see the module docstring)."""
+
+    def __init__(self, **kwargs):
+        super().__init__('circle_back_and_forth', PARAMETERS, **kwargs)
+        p = self.params
+        radius = (f'radius {p.linear_speed / abs(p.angular_speed):.3f} m'
+                  if p.angular_speed else 'a straight line')
+        cycles = f'{p.cycles} cycle(s)' if p.cycles else 'until stopped'
+        self.get_logger().info(
+            f'Driving {radius} at {p.linear_speed:g} m/s, flipping every {p.half_period:g} s, '
+            f'{cycles}')
+        self.ready()
+
+    def plan(self):
+        p = self.params
+        return circle_plan(p.linear_speed, p.angular_speed, p.half_period, p.cycles)
+
+    def control(self, now_ns):
+        command = super().control(now_ns)
+        t = self.elapsed(now_ns)
+        p = self.params
+        cycle = math.floor(t / (2.0 * p.half_period)) + 1
+        leg = 'out' if (t % (2.0 * p.half_period)) < p.half_period else 'back'
+        total = f' of {p.cycles}' if p.cycles else ''
+        self.progress(f'Cycle {cycle}{total}, driving {leg}')
+        return command
+
+    def summary(self, end_odom):
+        start = self.start_odom
+        if start is None:
+            return pose_error_text(None, None, 0.0, 0.0, 0.0)
+        return (f'{self.params.cycles} cycle(s) back to the start: '
+                + pose_error_text(start, end_odom, start.x, start.y, start.yaw))
+
+
+def main(args=None):
+    """Drive out and back until done or stopped; returns the exit code."""
+    return run(CircleBackAndForth, args)

@@ -1,0 +1,293 @@
+# Copyright 2026 motion_challenges contributors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+What every motion node shares: cmd_vel out, odometry in, a timer-driven state machine.
+
+A motion waits until the robot is there (a cmd_vel subscriber, time running, and odometry when
+it needs it), then runs on a timer on the node clock, so it works on wall time and on sim
+time alike, and finishes by publishing a zero Twist and one closing line that compares the goal
+with what odometry says was achieved.  ``shutdown_hook`` (called by runtime.run on every exit
+path) publishes the zero Twist again, so Ctrl-C or SIGTERM mid-motion stops the robot.
+"""
+
+import math
+import time
+
+from geometry_msgs.msg import Twist
+from nav_msgs.msg import Odometry
+from rclpy.clock import Clock
+from rclpy.clock import ClockType
+from rclpy.duration import Duration
+from rclpy.node import Node
+
+from motion_challenges.angles import YawAccumulator
+from motion_challenges.angles import yaw_from_quaternion
+from motion_challenges.parameters import declare
+from motion_challenges.parameters import Spec
+from motion_challenges.runtime import EXIT_FAILED
+from motion_challenges.runtime import EXIT_OK
+
+_NS = 1_000_000_000
+# How long to wait for the odometry that shows where the robot came to rest.
+_SETTLE_TICKS = 20
+
+
+def start_timeout_spec():
+    return Spec('start_timeout', 10.0,
+                'How long to wait for the robot (a cmd_vel subscriber, and odometry where the '
+                'motion needs it) before giving up [s, wall time].',
+                low=0.0, high=3600.0, low_open=True)
+
+
+def rate_spec(default):
+    return Spec('rate_hz', default, 'Control rate [Hz] of the timer that publishes cmd_vel.',
+                low=0.0, high=1000.0, low_open=True)
+
+
+class OdomPose:
+    """The latest odometry: pose, stamp, and the yaw turned since the motion started."""
+
+    def __init__(self, msg):
+        p = msg.pose.pose
+        self.x = p.position.x
+        self.y = p.position.y
+        self.yaw = yaw_from_quaternion(
+            p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w)
+        self.stamp_ns = msg.header.stamp.sec * _NS + msg.header.stamp.nanosec
+
+    def distance_to(self, other):
+        return math.hypot(self.x - other.x, self.y - other.y)
+
+
+class CommandLog:
+    """
+    The commands this node published, to predict progress since the last odometry.
+
+    Odometry stamped at s reports the pose at s; the commands published since then have moved
+    the robot on.  Adding their integral over [s, now] removes the one-message lag that would
+    otherwise make a closed loop overshoot.
+    """
+
+    def __init__(self):
+        self._entries = []  # (time_ns, linear, angular), oldest first
+
+    def add(self, now_ns, linear, angular):
+        self._entries.append((now_ns, linear, angular))
+        del self._entries[:-8]
+
+    def integral(self, since_ns, now_ns):
+        """Return (metres, radians) commanded over [since_ns, now_ns]."""
+        linear = angular = 0.0
+        for i, (start, v, w) in enumerate(self._entries):
+            end = self._entries[i + 1][0] if i + 1 < len(self._entries) else now_ns
+            overlap = (min(end, now_ns) - max(start, since_ns)) / _NS
+            if overlap > 0.0:
+                linear += v * overlap
+                angular += w * overlap
+        return linear, angular
+
+
+class MotionNode(Node):
+    """
+    Base class: subclasses set ``needs_odom`` and implement ``begin``, ``control``, ``summary``.
+
+    ``control(now_ns)`` is called every tick once started; it returns (linear, angular) to
+    publish, or None when the motion is complete.
+    """
+
+    needs_odom = False
+
+    def __init__(self, node_name, specs, **kwargs):
+        super().__init__(node_name, **kwargs)
+        self.params = declare(self, tuple(specs) + (start_timeout_spec(),))
+        self.period = 1.0 / self.params.rate_hz
+        self.cmd_pub = self.create_publisher(Twist, 'cmd_vel', 10)
+        self.create_subscription(Odometry, 'odom', self._on_odom, 50)
+        self.odom = None
+        self.start_odom = None
+        self.turned = YawAccumulator()
+        self.commands = CommandLog()
+        self.state = 'waiting'
+        self.done = False
+        self.exit_code = None
+        self.start_ns = None
+        self._stop_ns = None
+        self._settle_ticks = 0
+        self._wall_start = time.monotonic()
+        self._wall_begun = None
+        self._ready = False
+        self._tick_timer = None
+        # Waiting is timed on the wall clock: on sim time, node timers do not fire until the
+        # simulator publishes /clock, and a missing simulator is exactly what to report.
+        self._watchdog = self.create_timer(
+            0.5, self._on_watchdog, clock=Clock(clock_type=ClockType.STEADY_TIME))
+
+    # -- lifecycle ---------------------------------------------------------------------------
+
+    def ready(self):
+        """Start waiting for the robot and then move (called once the goal is known)."""
+        self._ready = True
+        self._tick_timer = self.create_timer(self.period, self._on_tick)
+
+    def finish(self, exit_code, message=None):
+        self.stop_robot()
+        if message:
+            log = self.get_logger().info if exit_code == EXIT_OK else self.get_logger().error
+            log(message)
+        self.state = 'finished'
+        self.exit_code = exit_code
+        self.done = True
+        for timer in (self._tick_timer, self._watchdog):
+            if timer is not None:
+                timer.cancel()
+
+    def shutdown_hook(self):
+        """Leave the robot stopped, whatever ended the run."""
+        if self.context.ok():
+            self.stop_robot()
+            # Give the last Twist time to reach the robot before the process goes away.
+            self.cmd_pub.wait_for_all_acked(Duration(seconds=1.0))
+
+    # -- helpers for subclasses --------------------------------------------------------------
+
+    def now_ns(self):
+        return self.get_clock().now().nanoseconds
+
+    def publish_command(self, linear, angular):
+        msg = Twist()
+        msg.linear.x = float(linear)
+        msg.angular.z = float(angular)
+        self.cmd_pub.publish(msg)
+        self.commands.add(self.now_ns(), linear, angular)
+
+    def stop_robot(self):
+        self.publish_command(0.0, 0.0)
+
+    def predicted_progress(self, now_ns):
+        """Return (metres, radians) commanded since the latest odometry was measured."""
+        return self.commands.integral(self.odom.stamp_ns, now_ns)
+
+    def progress(self, text):
+        self.get_logger().info(text, throttle_duration_sec=1.0)
+
+    # -- callbacks ---------------------------------------------------------------------------
+
+    def _on_odom(self, msg):
+        self.odom = OdomPose(msg)
+        self.turned.update(self.odom.yaw)
+
+    def _missing(self):
+        """Return what the motion still waits for, or '' when it can start."""
+        if self.cmd_pub.get_subscription_count() == 0:
+            return f'a subscriber on {self.cmd_pub.topic_name}'
+        if self.needs_odom and self.odom is None:
+            return 'odometry on ' + self.resolve_topic_name('odom')
+        return ''
+
+    def _on_watchdog(self):
+        if not self._ready or self.state != 'waiting':
+            return
+        missing = self._missing()
+        if not missing and self.get_parameter('use_sim_time').value and self.now_ns() == 0:
+            missing = 'simulated time on /clock (use_sim_time is true)'
+        if not missing:
+            return
+        waited = time.monotonic() - self._wall_start
+        if waited > self.params.start_timeout:
+            self.finish(EXIT_FAILED, f'Gave up after {waited:.1f} s waiting for {missing}; '
+                                     'is the robot (or unicycle_sim) running? Nothing moved.')
+        else:
+            self.get_logger().info(f'Waiting for {missing} ...', throttle_duration_sec=2.0)
+
+    def _on_tick(self):
+        now_ns = self.now_ns()
+        if now_ns == 0:
+            return
+        if self.state == 'waiting':
+            if self._missing():
+                return
+            self.state = 'running'
+            self.start_ns = now_ns
+            self._wall_begun = time.monotonic()
+            self.start_odom = self.odom
+            self.turned.reset(self.odom.yaw if self.odom else None)
+            self.begin(now_ns)
+        if self.state == 'running':
+            command = self.control(now_ns)
+            if command is not None:
+                self.publish_command(*command)
+                return
+            self.stop_robot()
+            self.state = 'settling'
+            self._stop_ns = now_ns
+        if self.state == 'settling':
+            self._settle(now_ns)
+
+    def _settle(self, now_ns):
+        # Report the pose from odometry measured after the stop took effect, if there is any.
+        self._settle_ticks += 1
+        fresh = self.odom is not None and self.odom.stamp_ns > self._stop_ns
+        if fresh or self._settle_ticks > _SETTLE_TICKS or self.start_odom is None:
+            sim_s = (self._stop_ns - self.start_ns) / _NS
+            wall_s = time.monotonic() - self._wall_begun
+            achieved = self.summary(self.odom if fresh else None)
+            self.finish(EXIT_OK, f'Done in {sim_s:.3f} s ({wall_s:.3f} s wall): {achieved}')
+
+    # -- for subclasses ----------------------------------------------------------------------
+
+    def begin(self, now_ns):
+        """Prepare the motion; called on the first tick once the robot is there."""
+
+    def control(self, now_ns):
+        raise NotImplementedError
+
+    def summary(self, end_odom):
+        """Return the closing line's goal-versus-achieved text (end_odom may be None)."""
+        raise NotImplementedError
+
+
+class TimedMotion(MotionNode):
+    """
+    An open-loop motion that follows a PiecewisePlan on the node clock.
+
+    Each tick publishes the plan's mean command over the coming period, so the commanded
+    integral equals the plan's even when a segment ends between two ticks.
+    """
+
+    def plan(self):
+        raise NotImplementedError
+
+    def begin(self, now_ns):
+        self._plan = self.plan()
+
+    def elapsed(self, now_ns):
+        return (now_ns - self.start_ns) / _NS
+
+    def control(self, now_ns):
+        t = self.elapsed(now_ns)
+        if self._plan.finished(t):
+            return None
+        return self._plan.average(t, t + self.period)
+
+
+def pose_error_text(start, end, goal_x, goal_y, goal_yaw):
+    """Describe how far end is from the goal pose (metres and degrees)."""
+    if end is None or start is None:
+        return 'no odometry, achieved pose unknown'
+    error_m = math.hypot(end.x - goal_x, end.y - goal_y)
+    error_deg = math.degrees(abs(math.remainder(end.yaw - goal_yaw, 2.0 * math.pi)))
+    return (f'goal ({goal_x:.4f}, {goal_y:.4f}, {math.degrees(goal_yaw):.3f} deg), '
+            f'achieved ({end.x:.4f}, {end.y:.4f}, {math.degrees(end.yaw):.3f} deg): '
+            f'error {error_m * 1000:.3f} mm, {error_deg:.4f} deg')

@@ -1,0 +1,115 @@
+# Copyright 2026 motion_challenges contributors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+``odom_out_and_back``: rbx1's closed-loop level of out-and-back, measured on odometry.
+
+Each leg drives until the Euclidean distance from the leg's start reaches ``goal_distance``,
+then turns until the accumulated wrapped yaw reaches ``goal_angle``, slowing down near each
+goal (Nav2 Spin's law) and pausing after each stop.  Without odometry it never moves: it says
+so and gives up after ``start_timeout``.
+"""
+
+import math
+
+from motion_challenges.motion_node import MotionNode
+from motion_challenges.parameters import Spec
+from motion_challenges.plans import approach_speed
+from motion_challenges.runtime import run
+from motion_challenges.timed_out_and_back import legs_summary
+from motion_challenges.timed_out_and_back import out_and_back_specs
+
+# A segment is complete once less than this is left [m or rad].
+_TOLERANCE = 1e-7
+
+PARAMETERS = out_and_back_specs(50.0) + (
+    Spec('linear_accel', 0.5, 'Deceleration used to slow down near the goal distance [m/s^2].',
+         low=0.0, high=100.0, low_open=True),
+    Spec('angular_accel', 2.0, 'Deceleration used to slow down near the goal angle [rad/s^2].',
+         low=0.0, high=100.0, low_open=True),
+    Spec('min_linear_speed', 0.01, 'Slowest forward speed while approaching the goal [m/s].',
+         low=0.0, high=10.0, low_open=True),
+    Spec('min_angular_speed', 0.05, 'Slowest turn rate while approaching the goal [rad/s].',
+         low=0.0, high=10.0, low_open=True),
+)
+
+
+class OdomOutAndBack(MotionNode):
+    """Out and back closed loop on odometry (see the module docstring)."""
+
+    needs_odom = True
+
+    def __init__(self, **kwargs):
+        super().__init__('odom_out_and_back', PARAMETERS, **kwargs)
+        p = self.params
+        steps = [('drive', p.goal_distance), ('pause', p.pause),
+                 ('turn', p.goal_angle), ('pause', p.pause)]
+        self._steps = [step for _ in range(p.legs) for step in steps if step[1] > 0.0]
+        self.get_logger().info(
+            f'{p.legs} leg(s) on odometry: {p.goal_distance:g} m at up to {p.linear_speed:g} '
+            f'm/s, turn {math.degrees(p.goal_angle):g} deg at up to {p.angular_speed:g} rad/s')
+        self.ready()
+
+    def begin(self, now_ns):
+        self._step = -1
+        self._next_step(now_ns)
+
+    def _next_step(self, now_ns):
+        self._step += 1
+        self._step_start_ns = now_ns
+        self._step_odom = self.odom
+        self._step_turned = self.turned.total
+
+    def control(self, now_ns):
+        while self._step < len(self._steps):
+            kind, goal = self._steps[self._step]
+            command = getattr(self, '_' + kind)(now_ns, goal)
+            if command is not None:
+                leg = self._step // 4 + 1 if self.params.pause > 0.0 else self._step // 2 + 1
+                self.progress(f'Leg {leg} of {self.params.legs}: {kind}')
+                return command
+            self._next_step(now_ns)
+        return None
+
+    def _drive(self, now_ns, goal):
+        p = self.params
+        metres, _ = self.predicted_progress(now_ns)
+        remaining = goal - (self.odom.distance_to(self._step_odom) + metres)
+        if remaining <= _TOLERANCE:
+            return None
+        return approach_speed(remaining, p.linear_speed, min(p.min_linear_speed, p.linear_speed),
+                              p.linear_accel, self.period), 0.0
+
+    def _turn(self, now_ns, goal):
+        p = self.params
+        _, radians = self.predicted_progress(now_ns)
+        remaining = goal - (self.turned.total - self._step_turned + radians)
+        if remaining <= _TOLERANCE:
+            return None
+        return 0.0, approach_speed(remaining, p.angular_speed,
+                                   min(p.min_angular_speed, p.angular_speed),
+                                   p.angular_accel, self.period)
+
+    def _pause(self, now_ns, duration):
+        if (now_ns - self._step_start_ns) / 1e9 >= duration - 1e-9:
+            return None
+        return 0.0, 0.0
+
+    def summary(self, end_odom):
+        return legs_summary(self, end_odom)
+
+
+def main(args=None):
+    """Drive the legs on odometry and stop; returns the exit code."""
+    return run(OdomOutAndBack, args)

@@ -1,0 +1,137 @@
+# Copyright 2026 motion_challenges contributors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+``rotate_robot``: turn in place by a typed (or given) angle at a typed (or given) speed.
+
+A port of The Construct's "ROS Mini Challenge #1" ``rotate_robot.py``.  It asks the same three
+questions, unless the answer was given as a parameter, then turns and stops.  ``mode`` picks
+open loop (``timed``: integral-exact on the node clock) or closed loop (``odom``: accumulated
+wrapped yaw from odometry, so 720 degrees is two turns, slowing down near the goal).
+"""
+
+import math
+import sys
+
+from motion_challenges.motion_node import MotionNode
+from motion_challenges.motion_node import rate_spec
+from motion_challenges.motion_node import TimedMotion
+from motion_challenges.parameters import Spec
+from motion_challenges.plans import approach_speed
+from motion_challenges.plans import rotation_plan
+from motion_challenges.prompts import ask_rotation
+from motion_challenges.prompts import InputEnded
+from motion_challenges.prompts import MAX_ANGLE_DEG
+from motion_challenges.prompts import MAX_ANGULAR_SPEED_DEG
+from motion_challenges.prompts import stream_writer
+from motion_challenges.runtime import run
+from motion_challenges.runtime import UsageError
+
+# Closed loop: done once less than this is left to turn [rad] (about 6e-6 degrees).
+_ANGLE_TOLERANCE = 1e-7
+
+PARAMETERS = (
+    Spec('angular_speed_deg', None, 'Turn rate [deg/s]; asked for when not given.',
+         low=0.0, high=MAX_ANGULAR_SPEED_DEG, low_open=True, kind=float),
+    Spec('angle_deg', None, 'Angle to turn [deg]; asked for when not given.',
+         low=0.0, high=MAX_ANGLE_DEG, low_open=True, kind=float),
+    Spec('clockwise', None, 'Turn clockwise (negative angular.z); asked for when not given.',
+         kind=bool),
+    Spec('mode', 'timed', 'timed: open loop on the clock; odom: closed loop on odometry.',
+         choices=('timed', 'odom')),
+    rate_spec(10.0),
+    Spec('angular_accel_deg', 180.0,
+         'odom mode: deceleration used to slow down near the goal [deg/s^2].',
+         low=0.0, high=100000.0, low_open=True),
+    Spec('min_angular_speed_deg', 2.0,
+         'odom mode: slowest turn rate while approaching the goal [deg/s].',
+         low=0.0, high=MAX_ANGULAR_SPEED_DEG, low_open=True),
+)
+
+
+class RotateRobot(TimedMotion):
+    """Turn in place by ``angle_deg`` at ``angular_speed_deg`` (see the module docstring)."""
+
+    def __init__(self, **kwargs):
+        super().__init__('rotate_robot', PARAMETERS, **kwargs)
+        self.needs_odom = self.params.mode == 'odom'
+        self.request = None
+
+    def missing_answers(self):
+        p = self.params
+        return p.angular_speed_deg is None or p.angle_deg is None or p.clockwise is None
+
+    def start(self, request):
+        """Set the goal (from parameters and answers) and begin waiting for the robot."""
+        self.request = request
+        self.sign = -1.0 if request.clockwise else 1.0
+        self.speed = math.radians(request.angular_speed_deg)
+        self.goal = math.radians(request.angle_deg)
+        self.get_logger().info(
+            f'Rotating {request.angle_deg:g} deg '
+            f'{"clockwise" if request.clockwise else "counter-clockwise"} at '
+            f'{request.angular_speed_deg:g} deg/s ({self.params.mode} mode)')
+        self.ready()
+
+    def plan(self):
+        return rotation_plan(self.speed, self.goal, self.request.clockwise)
+
+    def control(self, now_ns):
+        if self.params.mode == 'timed':
+            command = super().control(now_ns)
+            turned = self.elapsed(now_ns) * self.speed
+        else:
+            command, turned = self._closed_loop(now_ns)
+        self.progress(f'Turned {math.degrees(min(turned, self.goal)):.1f} of '
+                      f'{self.request.angle_deg:g} deg')
+        return command
+
+    def _closed_loop(self, now_ns):
+        _, predicted = self.predicted_progress(now_ns)
+        turned = self.sign * (self.turned.total + predicted)
+        remaining = self.goal - turned
+        if remaining <= _ANGLE_TOLERANCE:
+            return None, turned
+        speed = approach_speed(
+            remaining, self.speed, min(math.radians(self.params.min_angular_speed_deg),
+                                       self.speed),
+            math.radians(self.params.angular_accel_deg), self.period)
+        return (0.0, self.sign * speed), turned
+
+    def summary(self, end_odom):
+        goal_deg = self.sign * self.request.angle_deg
+        if end_odom is None:
+            return f'commanded {goal_deg:.4f} deg; no odometry, achieved angle unknown'
+        turned_deg = math.degrees(self.turned.total)
+        return (f'goal {goal_deg:.4f} deg, turned {turned_deg:.4f} deg (odometry), '
+                f'error {abs(turned_deg - goal_deg):.4f} deg')
+
+
+def ask_missing(node, read_line=None, write=None):
+    """Ask on stdin for the values not given as parameters, then start the node."""
+    p = node.params
+    try:
+        request = ask_rotation(
+            read_line or sys.stdin.readline, write or stream_writer(sys.stdout),
+            angular_speed_deg=p.angular_speed_deg, angle_deg=p.angle_deg,
+            clockwise=p.clockwise)
+    except InputEnded as error:
+        raise UsageError(f'{error}; nothing moved') from None
+    node.start(request)
+    return node
+
+
+def main(args=None):
+    """Ask, rotate, stop; returns the exit code."""
+    return run(lambda: ask_missing(RotateRobot()), args)

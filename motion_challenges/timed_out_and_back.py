@@ -1,0 +1,98 @@
+# Copyright 2026 motion_challenges contributors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+``timed_out_and_back``: drive out, turn around, drive back, turn around; on the clock only.
+
+A port of rbx1's ``timed_out_and_back.py`` (ROS by Example): each leg drives ``goal_distance``
+at ``linear_speed``, stops and pauses, turns ``goal_angle`` at ``angular_speed``, stops and
+pauses.  Durations come from distance/speed and angle/speed and the plan is integral-exact,
+so the robot ends where it started, facing the same way, without rbx1's tick rounding.
+"""
+
+import math
+
+from motion_challenges.motion_node import pose_error_text
+from motion_challenges.motion_node import rate_spec
+from motion_challenges.motion_node import TimedMotion
+from motion_challenges.parameters import Spec
+from motion_challenges.plans import out_and_back_plan
+from motion_challenges.runtime import run
+from sim_diffdrive.kinematics import integrate
+
+
+def out_and_back_specs(rate_hz):
+    """Parameters shared with odom_out_and_back."""
+    return (
+        Spec('goal_distance', 1.0, 'Distance of each straight leg [m].',
+             low=0.0, high=1000.0, low_open=True),
+        Spec('linear_speed', 0.2, 'Forward speed [m/s].', low=0.0, high=10.0, low_open=True),
+        Spec('angular_speed', 1.0, 'Turn rate [rad/s].', low=0.0, high=10.0, low_open=True),
+        Spec('goal_angle', math.pi, 'Angle of each turn [rad], counter-clockwise.',
+             low=0.0, high=100.0, low_open=True),
+        Spec('legs', 2, 'Number of drive-and-turn legs.', low=1, high=1000),
+        Spec('pause', 1.0, 'Pause after each stop [s].', low=0.0, high=3600.0),
+        rate_spec(rate_hz),
+    )
+
+
+def expected_end(start, goal_distance, goal_angle, legs):
+    """Return the pose (x, y, yaw) the legs lead to from start (the start itself for pi x 2)."""
+    x, y, yaw = start.x, start.y, start.yaw
+    for _ in range(legs):
+        x, y, yaw = integrate(x, y, yaw, goal_distance, 0.0, 1.0)
+        x, y, yaw = integrate(x, y, yaw, 0.0, goal_angle, 1.0)
+    return x, y, yaw
+
+
+def legs_summary(node, end_odom):
+    """Closing text for both out-and-back motions."""
+    start = node.start_odom
+    p = node.params
+    if start is None or end_odom is None:
+        return pose_error_text(None, None, 0.0, 0.0, 0.0)
+    return (f'{p.legs} leg(s) of {p.goal_distance:g} m: '
+            + pose_error_text(start, end_odom, *expected_end(
+                start, p.goal_distance, p.goal_angle, p.legs)))
+
+
+class TimedOutAndBack(TimedMotion):
+    """Out and back on the clock (see the module docstring)."""
+
+    def __init__(self, **kwargs):
+        super().__init__('timed_out_and_back', out_and_back_specs(50.0), **kwargs)
+        p = self.params
+        self.get_logger().info(
+            f'{p.legs} leg(s): {p.goal_distance:g} m at {p.linear_speed:g} m/s, turn '
+            f'{math.degrees(p.goal_angle):g} deg at {p.angular_speed:g} rad/s, '
+            f'pause {p.pause:g} s')
+        self.ready()
+
+    def plan(self):
+        p = self.params
+        return out_and_back_plan(p.goal_distance, p.linear_speed, p.goal_angle,
+                                 p.angular_speed, p.legs, p.pause)
+
+    def control(self, now_ns):
+        command = super().control(now_ns)
+        self.progress(f'{self.elapsed(now_ns):.1f} of {self._plan.duration:.1f} s')
+        return command
+
+    def summary(self, end_odom):
+        return legs_summary(self, end_odom)
+
+
+def main(args=None):
+    """Drive the legs and stop; returns the exit code."""
+    return run(TimedOutAndBack, args)

@@ -1,0 +1,90 @@
+# Copyright 2026 motion_challenges contributors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""The motions against the simulator in one process, on lockstep simulated time."""
+
+import math
+
+from conftest import angle_error
+from conftest import pose_of
+import pytest
+from rclpy.parameter import Parameter
+
+from motion_challenges.circle_back_and_forth import CircleBackAndForth
+from motion_challenges.odom_out_and_back import OdomOutAndBack
+from motion_challenges.prompts import RotationRequest
+from motion_challenges.rotate_robot import RotateRobot
+from motion_challenges.timed_out_and_back import TimedOutAndBack
+
+MM = 1e-3
+HUNDREDTH_DEG = math.radians(0.01)
+
+
+def build(graph, node_class, **params):
+    params.setdefault('use_sim_time', True)
+    return graph.add(node_class(context=graph.context, parameter_overrides=[
+        Parameter(name, value=value) for name, value in params.items()]))
+
+
+def run_to_end(graph, node, sim_timeout):
+    graph.step_until(lambda: node.done, sim_timeout)
+    assert node.exit_code == 0
+    # Odometry after the stop shows where the robot came to rest.
+    graph.step_for(0.2)
+
+
+@pytest.mark.parametrize('mode', ['timed', 'odom'])
+@pytest.mark.parametrize('clockwise,angle_deg', [(True, 90.0), (False, 90.0), (False, 720.0),
+                                                 (True, 720.0)])
+def test_rotate_ends_at_goal_yaw(graph, mode, clockwise, angle_deg):
+    graph.sim()
+    probe = graph.probe()
+    node = build(graph, RotateRobot, mode=mode)
+    node.start(RotationRequest(60.0, angle_deg, clockwise))
+    run_to_end(graph, node, sim_timeout=angle_deg / 60.0 + 5.0)
+    _, _, yaw = pose_of(probe.odom)
+    goal = math.radians(-angle_deg if clockwise else angle_deg)
+    assert angle_error(yaw, goal) < HUNDREDTH_DEG
+    assert node.turned.total == pytest.approx(goal, abs=HUNDREDTH_DEG)
+    assert probe.odom.twist.twist.angular.z == 0.0
+
+
+@pytest.mark.parametrize('node_class', [TimedOutAndBack, OdomOutAndBack])
+def test_out_and_back_returns_to_start(graph, node_class):
+    graph.sim(initial_x=1.0, initial_y=-2.0, initial_yaw=0.5)
+    probe = graph.probe()
+    node = build(graph, node_class)
+    run_to_end(graph, node, sim_timeout=40.0)
+    x, y, yaw = pose_of(probe.odom)
+    assert math.hypot(x - 1.0, y + 2.0) < MM
+    assert angle_error(yaw, 0.5) < HUNDREDTH_DEG
+    # Halfway, the robot stood goal_distance away, facing back.
+    assert probe.odom.twist.twist.linear.x == 0.0
+
+
+def test_circle_returns_after_each_cycle_and_reaches_two_radii(graph):
+    graph.sim()
+    probe = graph.probe()
+    v, w, half = 0.5, 0.5, 3.0
+    node = build(graph, CircleBackAndForth, linear_speed=v, angular_speed=w,
+                 half_period=half, cycles=2)
+    run_to_end(graph, node, sim_timeout=20.0)
+    start_ns = node.start_ns
+    for cycle in (1, 2):
+        x, y, _ = pose_of(probe.odom_after(start_ns + int(cycle * 2 * half * 1e9)))
+        assert math.hypot(x, y) < MM
+    far = max(math.hypot(*pose_of(o)[:2]) for o in probe.odoms)
+    # Chord of an arc of radius v/w over angle w*half.
+    assert far == pytest.approx(2 * v / w * math.sin(w * half / 2), abs=MM)
+    assert probe.odom.twist.twist.linear.x == 0.0
