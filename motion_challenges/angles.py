@@ -32,7 +32,9 @@ def quaternion_from_yaw(yaw):
 
 def yaw_from_quaternion(x, y, z, w):
     """Return the yaw in (-pi, pi] of a quaternion (tolerates a non-unit one)."""
-    return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+    # w^2 + x^2 - y^2 - z^2 rather than 1 - 2(y^2 + z^2): the same for a unit quaternion, and
+    # scale-free.  atan2 can return -pi for a half turn (yaw -pi in): wrap it to +pi.
+    return normalize_angle(math.atan2(2.0 * (w * z + x * y), w * w + x * x - y * y - z * z))
 
 
 class YawAccumulator:

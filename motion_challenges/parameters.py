@@ -140,11 +140,19 @@ def declare(node, specs):
     """
     values = SimpleNamespace()
     for spec in specs:
-        parameter = node.declare_parameter(spec.name, spec.default, spec.descriptor())
+        # Declared without its range first, so that the check below (not rclpy's) words the
+        # refusal; the full descriptor then guards later changes and shows in introspection.
+        descriptor = spec.descriptor()
+        unbounded = ParameterDescriptor(
+            name=spec.name, description=descriptor.description, dynamic_typing=True,
+            additional_constraints=descriptor.additional_constraints)
+        parameter = node.declare_parameter(spec.name, spec.default, unbounded)
         value = spec.check(parameter.value)
         if value is not None and (value != parameter.value
                                   or type(value) is not type(parameter.value)):
             # Store the converted value so `ros2 param get` shows what the node runs with.
             node.set_parameters([Parameter(spec.name, value=value)])
+        if descriptor.floating_point_range or descriptor.integer_range:
+            node.set_descriptor(spec.name, descriptor)
         setattr(values, spec.name, value)
     return values

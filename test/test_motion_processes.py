@@ -1,0 +1,195 @@
+# Copyright 2026 motion_challenges contributors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The real executables over DDS, as a user runs them: a simulator process and a motion process.
+
+Across processes the simulator steps time on a wall timer, so a command lands on the step it
+was meant for only while the graph keeps up; the exact answers are proven in lockstep by
+test_motions_graph.py.  Here a result is accepted within one simulator step of motion.
+"""
+
+import math
+import os
+import shutil
+import signal
+import subprocess
+import time
+
+from conftest import angle_error
+from conftest import pose_of
+import pytest
+
+RATE_HZ = 50.0
+REAL_TIME_FACTOR = 4.0
+ROTATE_ARGS = ['--ros-args', '-p', 'use_sim_time:=true']
+# One simulator step of turning at 60 deg/s, plus rounding.
+ONE_STEP_AT_60 = math.radians(60.0 / RATE_HZ) * 1.01
+
+
+def start(executable, *args, stdin=subprocess.DEVNULL):
+    path = shutil.which(executable)
+    assert path, f'{executable} is not on PATH; install the package (make venv)'
+    return subprocess.Popen([path, *args], stdin=stdin, stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT, text=True, env=dict(os.environ))
+
+
+def stop(process):
+    if process.poll() is None:
+        process.send_signal(signal.SIGINT)
+        try:
+            process.wait(5.0)
+        except subprocess.TimeoutExpired:
+            process.kill()
+            process.wait()
+    return process.stdout.read()
+
+
+@pytest.fixture
+def sim_process(graph):
+    """A unicycle_sim process owning time, and an in-process probe watching its odometry."""
+    processes = []
+
+    def launch(*params):
+        args = ['--ros-args', '-p', 'publish_clock:=true',
+                '-p', f'real_time_factor:={REAL_TIME_FACTOR}', '-p', f'rate_hz:={RATE_HZ}']
+        for param in params:
+            args += ['-p', param]
+        processes.append(start('unicycle_sim', *args))
+        probe = graph.probe()
+        assert graph.spin_until(lambda: probe.odom is not None, 15.0), 'no odometry from sim'
+        return probe
+
+    try:
+        yield launch
+    finally:
+        for process in processes:
+            stop(process)
+
+
+def finish(graph, process, timeout=30.0):
+    """Wait (spinning the probe) for process to exit; return (exit code, output)."""
+    assert graph.spin_until(lambda: process.poll() is not None, timeout), 'did not finish'
+    output = process.stdout.read()
+    return process.returncode, output
+
+
+def settle(graph, probe, seconds=0.3):
+    """Let odometry from after the motion arrive, and return the latest pose."""
+    stamp = probe.odom.header.stamp.sec + probe.odom.header.stamp.nanosec * 1e-9
+    assert graph.spin_until(lambda: (probe.odom.header.stamp.sec
+                                     + probe.odom.header.stamp.nanosec * 1e-9) > stamp + seconds)
+    return pose_of(probe.odom)
+
+
+def test_typed_answers_through_a_pipe_rotate_the_robot(graph, sim_process):
+    probe = sim_process()
+    motion = start('rotate_robot', *ROTATE_ARGS, stdin=subprocess.PIPE)
+    motion.stdin.write('60\n90\ny\n')
+    motion.stdin.close()
+    code, output = finish(graph, motion)
+    assert code == 0, output
+    assert 'Enter desired angular speed (degrees): ' in output
+    assert 'Do you want to rotate clockwise? (y/n): ' in output
+    assert 'Done' in output
+    _, _, yaw = settle(graph, probe)
+    assert angle_error(yaw, math.radians(-90.0)) < ONE_STEP_AT_60
+    assert probe.odom.twist.twist.angular.z == 0.0
+
+
+def test_bad_answers_are_explained_and_asked_again(graph, sim_process):
+    probe = sim_process()
+    motion = start('rotate_robot', *ROTATE_ARGS, '-p', 'mode:=odom', stdin=subprocess.PIPE)
+    motion.stdin.write('fast\n-5\nnan\n60\n\n1e9\n45\nmaybe\nN\n')
+    motion.stdin.close()
+    code, output = finish(graph, motion)
+    assert code == 0, output
+    assert output.count('Enter desired angular speed (degrees): ') == 4
+    assert output.count('Enter desired angle (degrees): ') == 3
+    assert output.count('Do you want to rotate clockwise? (y/n): ') == 2
+    assert "'fast' is not a number" in output
+    assert 'answer y or n' in output
+    _, _, yaw = settle(graph, probe)
+    assert angle_error(yaw, math.radians(45.0)) < ONE_STEP_AT_60
+
+
+def test_input_ending_early_refuses_and_never_moves(graph, sim_process):
+    probe = sim_process()
+    motion = start('rotate_robot', *ROTATE_ARGS, stdin=subprocess.PIPE)
+    motion.stdin.write('60\n')
+    motion.stdin.close()
+    code, output = finish(graph, motion)
+    assert code == 2, output
+    assert 'input ended before the angle was given' in output
+    settle(graph, probe)
+    assert all(pose_of(o) == (0.0, 0.0, 0.0) for o in probe.odoms)
+    assert all(o.twist.twist.angular.z == 0.0 for o in probe.odoms)
+
+
+def test_parameters_skip_the_questions(graph, sim_process):
+    probe = sim_process()
+    motion = start('rotate_robot', *ROTATE_ARGS, '-p', 'angular_speed_deg:=90',
+                   '-p', 'angle_deg:=180', '-p', 'clockwise:=false', '-p', 'mode:=odom')
+    code, output = finish(graph, motion)
+    assert code == 0, output
+    assert 'Enter' not in output
+    _, _, yaw = settle(graph, probe)
+    assert angle_error(yaw, math.pi) < math.radians(90.0 / RATE_HZ) * 1.01
+
+
+@pytest.mark.parametrize('executable', ['rotate_robot', 'circle_back_and_forth',
+                                        'timed_out_and_back', 'odom_out_and_back'])
+def test_bad_parameter_is_refused_by_name(executable):
+    motion = start(executable, '--ros-args', '-p', 'rate_hz:=-1.0')
+    code = motion.wait(20.0)
+    output = motion.stdout.read()
+    assert code == 2, output
+    assert "parameter 'rate_hz' must be in (0.0, 1000.0]; got -1.0" in output
+    assert 'Traceback' not in output
+
+
+@pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM])
+def test_interrupt_mid_rotation_stops_the_robot_at_once(graph, sim_process, sig):
+    # With the simulator's cmd_vel timeout off, only the motion's own last Twist stops it.
+    probe = sim_process('cmd_vel_timeout:=0.0')
+    motion = start('rotate_robot', *ROTATE_ARGS, '-p', 'angular_speed_deg:=60',
+                   '-p', 'angle_deg:=36000', '-p', 'clockwise:=true')
+    try:
+        assert graph.spin_until(lambda: probe.odom.twist.twist.angular.z < 0.0, 20.0)
+        motion.send_signal(sig)
+        motion.wait(5.0)
+        interrupted = time.monotonic()
+        output = motion.stdout.read()
+    finally:
+        stop(motion)
+    assert motion.returncode == 0, output
+    assert 'Traceback' not in output
+    # The next odometry already shows the robot stopped, and it stays stopped.
+    _, _, yaw = settle(graph, probe, 0.1)
+    assert probe.odom.twist.twist.angular.z == 0.0
+    _, _, later = settle(graph, probe, 1.0)
+    assert later == yaw
+    assert time.monotonic() - interrupted < 5.0
+
+
+def test_odom_motion_without_odometry_gives_up_and_never_moves(graph):
+    probe = graph.probe(use_sim_time=False)
+    motion = start('odom_out_and_back', '--ros-args', '-p', 'start_timeout:=1.0')
+    # Be the robot's cmd_vel subscriber, but never publish odometry.
+    received = []
+    probe.create_subscription(type(probe.cmd_pub.msg_type()), 'cmd_vel', received.append, 10)
+    code, output = finish(graph, motion, timeout=20.0)
+    assert code == 1, output
+    assert 'Gave up' in output and 'odometry' in output
+    assert all(m.linear.x == 0.0 and m.angular.z == 0.0 for m in received)
