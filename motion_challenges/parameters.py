@@ -83,7 +83,7 @@ class Spec:
         if self.length is not None:
             parts.append(f'{self.length} values')
         if self.high is not None:
-            parts.append(self._range_text())
+            parts.append(self._interval())
         if self.choices:
             parts.append('one of ' + ', '.join(self.choices))
         return '; '.join(parts)
@@ -125,8 +125,11 @@ class Spec:
             raise self._error(value, self._range_text())
         return value
 
+    def _interval(self):
+        return f'{"(" if self.low_open else "["}{self.low}, {self.high}]'
+
     def _range_text(self):
-        return f'must be in {"(" if self.low_open else "["}{self.low}, {self.high}]'
+        return 'must be in ' + self._interval()
 
     def _error(self, value, why):
         return ParameterError(f"parameter '{self.name}' {why}; got {value!r}")
