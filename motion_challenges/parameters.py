@@ -151,8 +151,9 @@ def declare(node, specs):
             additional_constraints=descriptor.additional_constraints)
         parameter = node.declare_parameter(spec.name, spec.default, unbounded)
         value = spec.check(parameter.value)
-        if value is not None and (value != parameter.value
-                                  or type(value) is not type(parameter.value)):
+        # Compare parameter types too: [1, 0] == [1.0, 0.0], yet one is an integer array.
+        if value is not None and (value != parameter.value or parameter.type_
+                                  != Parameter.Type.from_parameter_value(value)):
             # Store the converted value so `ros2 param get` shows what the node runs with.
             node.set_parameters([Parameter(spec.name, value=value)])
         if descriptor.floating_point_range or descriptor.integer_range:

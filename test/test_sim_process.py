@@ -1,0 +1,141 @@
+# Copyright 2026 motion_challenges contributors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The real ``unicycle_sim`` executable, driven over DDS by a probe in this process.
+
+Across processes the simulator steps time on a wall timer, so a command takes effect on the
+step it was meant for only while the graph keeps up: turns are checked within 0.05 rad here,
+exactly in test_sim_graph.py.
+"""
+
+import os
+import shutil
+import signal
+import subprocess
+import sys
+
+from conftest import angle_error
+from conftest import pose_of
+import pytest
+
+NS = 1_000_000_000
+SIM_ARGS = ('--ros-args', '-p', 'publish_clock:=true', '-p', 'real_time_factor:=5.0')
+
+
+def sim_command(*args):
+    """Return the command line of the installed executable (or of its main() otherwise)."""
+    path = shutil.which('unicycle_sim')
+    if path:
+        return [path, *args]
+    return [sys.executable, '-c',
+            'import sys; from sim_diffdrive.sim_node import main; sys.exit(main())', *args]
+
+
+class SimProcess:
+    """A unicycle_sim process whose output goes to a file (a pipe could fill up and block it)."""
+
+    def __init__(self, log_path, *args):
+        self.log_path = log_path
+        with open(log_path, 'w') as log:
+            self.process = subprocess.Popen(
+                sim_command(*args), stdin=subprocess.DEVNULL, stdout=log,
+                stderr=subprocess.STDOUT, env=dict(os.environ))
+
+    def output(self):
+        return self.log_path.read_text()
+
+    def stop(self, signum, timeout=5.0):
+        """Send signum and return the exit code; fail if the process does not exit in time."""
+        self.process.send_signal(signum)
+        try:
+            return self.process.wait(timeout)
+        except subprocess.TimeoutExpired:
+            pytest.fail(f'unicycle_sim still running {timeout} s after signal {signum}')
+
+    def kill(self):
+        if self.process.poll() is None:
+            self.process.kill()
+            self.process.wait()
+
+
+@pytest.fixture
+def start_sim(tmp_path):
+    """Start unicycle_sim with the given arguments; whatever still runs is killed afterwards."""
+    started = []
+
+    def start(*args):
+        sim = SimProcess(tmp_path / f'unicycle_sim_{len(started)}.log', *args)
+        started.append(sim)
+        return sim
+
+    try:
+        yield start
+    finally:
+        for sim in started:
+            sim.kill()
+
+
+def stamp_ns(odom):
+    return odom.header.stamp.sec * NS + odom.header.stamp.nanosec
+
+
+def wait_for_odometry(graph, probe, sim):
+    if not graph.spin_until(lambda: probe.odom is not None, timeout=20.0):
+        pytest.fail('no odometry from unicycle_sim:\n' + sim.output())
+
+
+def test_turns_on_command_and_exits_cleanly_on_sigint(graph, start_sim):
+    sim = start_sim(*SIM_ARGS)
+    probe = graph.probe()
+    wait_for_odometry(graph, probe, sim)
+    assert pose_of(probe.odom) == (0.0, 0.0, 0.0)
+
+    # 1 rad/s, re-sent on every 0.1 s sim tick (well inside the 0.5 s cmd_vel timeout), for
+    # 1.5 s, then a zero Twist.
+    probe.play([(0.0, 1.0, 15)], period=0.1)
+    assert graph.spin_until(lambda: not probe.playing, timeout=20.0), sim.output()
+    assert graph.spin_until(
+        lambda: stamp_ns(probe.odom) > probe.script_done_at + NS // 5, timeout=10.0)
+    odom = probe.odom
+    x, y, yaw = pose_of(odom)
+    assert (x, y) == (0.0, 0.0)
+    assert angle_error(yaw, 1.5) < 0.05
+    assert (odom.twist.twist.linear.x, odom.twist.twist.angular.z) == (0.0, 0.0)
+
+    assert sim.stop(signal.SIGINT) == 0
+    output = sim.output()
+    assert 'Traceback' not in output
+    assert 'publishing /clock at 5x real time' in output
+
+
+def test_exits_cleanly_on_sigterm(graph, start_sim):
+    sim = start_sim(*SIM_ARGS)
+    probe = graph.probe()
+    wait_for_odometry(graph, probe, sim)
+    assert sim.stop(signal.SIGTERM) == 0
+    assert 'Traceback' not in sim.output()
+
+
+def test_bad_parameter_exits_with_usage_code_naming_it(start_sim):
+    sim = start_sim('--ros-args', '-p', 'rate_hz:=-5.0')
+    try:
+        code = sim.process.wait(20.0)
+    except subprocess.TimeoutExpired:
+        pytest.fail('unicycle_sim kept running with rate_hz:=-5.0')
+    output = sim.output()
+    assert code == 2, output
+    assert "'rate_hz'" in output
+    assert '-5.0' in output
+    assert 'Traceback' not in output

@@ -1,0 +1,299 @@
+# Copyright 2026 motion_challenges contributors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Run every motion against the simulator, as separate processes over DDS, and print a table.
+
+For each motion in turn this starts a fresh ``unicycle_sim`` that owns time (``publish_clock``,
+``real_time_factor`` = --rtf) and the motion's executable with ``use_sim_time`` and all its
+answers given as parameters, so nothing prompts.  An observer node in this process records
+``odom``; once the motion process has exited, the robot's resting pose is compared with the
+analytic goal (rotations: start yaw - 90 deg; the others: back at the start pose).
+
+The table shows goal, achieved pose, error (mm, deg), and the simulated and wall seconds from
+the robot's first to its last movement (their ratio is the real-time factor the processes
+actually kept up with).  Across processes the simulator steps on a wall timer at
+rate_hz x rtf, so results are exact only while the graph keeps up; the table shows what was
+measured.  The exit code is 1 when a motion process failed or timed out, 0 otherwise.
+
+The demo runs on its own ROS domain (random in 1..100, or MOTION_DEMO_DOMAIN_ID) with
+localhost-only discovery, so it never drives anyone else's robot.  Usage:
+``python tools/demo.py [--rtf 10]`` with the venv active (``make demo``).
+"""
+
+import argparse
+from dataclasses import dataclass
+import math
+import os
+from pathlib import Path
+import random
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+
+from nav_msgs.msg import Odometry
+import rclpy
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+
+from motion_challenges.angles import yaw_from_quaternion
+
+
+@dataclass(frozen=True)
+class Motion:
+    """One row of the demo: what to run and what it should achieve."""
+
+    label: str
+    executable: str
+    params: tuple  # 'name:=value' strings, given with -p
+    sim_seconds: float  # about how long it runs in simulated time, to bound the wait
+    turn_deg: float = None  # goal yaw relative to the start; None: back at the start pose
+
+
+ROTATION = ('angular_speed_deg:=60.0', 'angle_deg:=90.0', 'clockwise:=true')
+MOTIONS = (
+    Motion('rotate_robot (timed)', 'rotate_robot', ROTATION + ('mode:=timed',), 1.5, -90.0),
+    Motion('rotate_robot (odom)', 'rotate_robot', ROTATION + ('mode:=odom',), 1.5, -90.0),
+    Motion('circle_back_and_forth (1 cycle, 5 s half period)', 'circle_back_and_forth',
+           ('cycles:=1', 'half_period:=5.0'), 10.0),
+    Motion('timed_out_and_back', 'timed_out_and_back', (), 20.3),
+    Motion('odom_out_and_back', 'odom_out_and_back', (), 21.0),
+)
+
+# Wall seconds allowed on top of a motion's simulated duration (process start, discovery).
+_START_ALLOWANCE = 15.0
+
+
+class Pose:
+    """x, y [m] and yaw [rad] of an Odometry message."""
+
+    def __init__(self, msg):
+        p = msg.pose.pose
+        self.x = p.position.x
+        self.y = p.position.y
+        self.yaw = yaw_from_quaternion(
+            p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w)
+
+
+class Observer(Node):
+    """Record the robot's first and latest pose, and when it started and stopped moving."""
+
+    def __init__(self, context):
+        super().__init__('demo_observer', context=context,
+                         parameter_overrides=[Parameter('use_sim_time', value=True)])
+        self.first = None
+        self.latest = None
+        self.count = 0
+        self.moving = False
+        self.move_start = None  # (sim s, wall s) of the last odometry at rest before moving
+        self.move_end = None  # (sim s, wall s) of the first odometry at rest after moving
+        self._at_rest = None
+        self.create_subscription(Odometry, 'odom', self._on_odom, 50)
+
+    def _on_odom(self, msg):
+        pose = Pose(msg)
+        self.first = self.first or pose
+        self.latest = pose
+        self.count += 1
+        sample = (msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9, time.monotonic())
+        self.moving = bool(msg.twist.twist.linear.x or msg.twist.twist.angular.z)
+        if self.moving:
+            if self.move_start is None:
+                self.move_start = self._at_rest or sample
+            self.move_end = None
+        else:
+            self._at_rest = sample
+            if self.move_start is not None and self.move_end is None:
+                self.move_end = sample
+
+
+@dataclass
+class Result:
+    motion: Motion
+    exit_code: object  # int, or 'timeout'
+    start: Pose = None
+    end: Pose = None
+    sim_s: float = None
+    wall_s: float = None
+
+
+def spin_until(executor, predicate, timeout):
+    """Spin until predicate() is true; return whether it became true within timeout [s]."""
+    deadline = time.monotonic() + timeout
+    while not predicate():
+        if time.monotonic() > deadline:
+            return False
+        executor.spin_once(timeout_sec=0.02)
+    return True
+
+
+def stop(process):
+    """Interrupt a child like Ctrl-C would (so a motion stops its robot), then kill it."""
+    if process is None or process.poll() is not None:
+        return
+    process.send_signal(signal.SIGINT)
+    try:
+        process.wait(timeout=3.0)
+    except subprocess.TimeoutExpired:
+        process.kill()
+        process.wait()
+
+
+def launch(executable, params, log_path):
+    """Start an executable with -p parameters, its output going to log_path."""
+    args = [executable, '--ros-args']
+    for name_value in params:
+        args += ['-p', name_value]
+    with open(log_path, 'w') as log:
+        return subprocess.Popen(args, stdout=log, stderr=subprocess.STDOUT)
+
+
+def print_tail(what, log_path, lines=8):
+    print(f'  {what}; last lines of its output:')
+    for line in log_path.read_text().splitlines()[-lines:]:
+        print('    ' + line)
+
+
+def run_motion(motion, context, rtf, log_dir):
+    """Run one motion against a fresh simulator and return what the observer measured."""
+    observer = Observer(context)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(observer)
+    sim_log = Path(log_dir) / 'unicycle_sim.log'
+    motion_log = Path(log_dir) / f'{motion.executable}.log'
+    sim = process = None
+    try:
+        sim = launch('unicycle_sim', ('publish_clock:=true', f'real_time_factor:={rtf}'), sim_log)
+        # Start the motion only once the start pose is known.
+        if not spin_until(executor, lambda: observer.first is not None, _START_ALLOWANCE):
+            print_tail('no odometry from unicycle_sim', sim_log)
+            return Result(motion, 'no sim')
+        process = launch(motion.executable, ('use_sim_time:=true',) + motion.params, motion_log)
+        timeout = _START_ALLOWANCE + 3.0 * motion.sim_seconds / rtf
+        if spin_until(executor, lambda: process.poll() is not None, timeout):
+            exit_code = process.returncode
+        else:
+            stop(process)
+            exit_code = 'timeout'
+        if exit_code != 0:
+            print_tail(f'{motion.executable} exited with {exit_code}', motion_log)
+        # The resting pose: odometry received after the motion process has gone.
+        seen = observer.count
+        spin_until(executor, lambda: observer.count > seen + 2 and not observer.moving, 2.0)
+        result = Result(motion, exit_code, observer.first, observer.latest)
+        if observer.move_start and observer.move_end:
+            result.sim_s = observer.move_end[0] - observer.move_start[0]
+            result.wall_s = observer.move_end[1] - observer.move_start[1]
+        return result
+    finally:
+        stop(process)
+        stop(sim)
+        executor.remove_node(observer)
+        observer.destroy_node()
+        executor.shutdown()
+
+
+def goal_pose(result):
+    """Return the analytic goal (x, y, yaw) from the start pose."""
+    start = result.start
+    turn = math.radians(result.motion.turn_deg or 0.0)
+    return start.x, start.y, math.remainder(start.yaw + turn, 2.0 * math.pi)
+
+
+def row(result):
+    """Return the table cells of one result."""
+    exit_code = str(result.exit_code)
+    if result.start is None or result.end is None:
+        return [result.motion.label, '-', '-', '-', '-', '-', exit_code]
+    x, y, yaw = goal_pose(result)
+    end = result.end
+    if result.motion.turn_deg is not None:
+        goal = f'yaw {math.degrees(yaw):.3f} deg'
+        achieved = f'yaw {math.degrees(end.yaw):.3f} deg'
+    else:
+        goal = f'({x:.4f}, {y:.4f}, {math.degrees(yaw):.3f} deg)'
+        achieved = f'({end.x:.4f}, {end.y:.4f}, {math.degrees(end.yaw):.3f} deg)'
+    error_mm = 1000.0 * math.hypot(end.x - x, end.y - y)
+    error_deg = math.degrees(abs(math.remainder(end.yaw - yaw, 2.0 * math.pi)))
+    seconds = [f'{s:.2f}' if s is not None else '-' for s in (result.sim_s, result.wall_s)]
+    return [result.motion.label, goal, achieved, f'{error_mm:.3f} mm, {error_deg:.4f} deg',
+            *seconds, exit_code]
+
+
+def print_table(results):
+    header = ['motion', 'goal', 'achieved', 'error', 'sim s', 'wall s', 'exit']
+    rows = [header] + [row(r) for r in results]
+    widths = [max(len(r[i]) for r in rows) for i in range(len(header))]
+    for i, cells in enumerate(rows):
+        print('  '.join(c.ljust(w) if j < 4 else c.rjust(w)
+                        for j, (c, w) in enumerate(zip(cells, widths))))
+        if i == 0:
+            print('  '.join('-' * w for w in widths))
+
+
+def main():
+    parser = argparse.ArgumentParser(
+        description='Run every motion against unicycle_sim over DDS on simulated time and '
+                    'print goal versus achieved pose.')
+    parser.add_argument('--rtf', type=float, default=10.0,
+                        help='simulated seconds per wall second (default: %(default)s)')
+    options = parser.parse_args()
+    missing = [e for e in {'unicycle_sim'} | {m.executable for m in MOTIONS}
+               if shutil.which(e) is None]
+    if missing:
+        print(f'Not on PATH: {", ".join(sorted(missing))}; run `. .venv/bin/activate` first '
+              '(or `make demo`).', file=sys.stderr)
+        return 2
+
+    domain_id = int(os.environ.get('MOTION_DEMO_DOMAIN_ID')
+                    or random.SystemRandom().randint(1, 100))
+    # Children inherit these: a domain of our own, discovery on this machine only.
+    os.environ['ROS_DOMAIN_ID'] = str(domain_id)
+    os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+    print(f'ROS_DOMAIN_ID={domain_id}, localhost only, real-time factor {options.rtf:g}',
+          flush=True)
+
+    wall_start = time.monotonic()
+    context = Context()
+    rclpy.init(context=context, domain_id=domain_id)
+    results = []
+    try:
+        with tempfile.TemporaryDirectory(prefix='motion_demo_') as log_dir:
+            for i, motion in enumerate(MOTIONS, 1):
+                print(f'[{i}/{len(MOTIONS)}] {motion.label} ...', flush=True)
+                results.append(run_motion(motion, context, options.rtf, log_dir))
+    except KeyboardInterrupt:
+        print('Interrupted')
+        return 130
+    finally:
+        rclpy.try_shutdown(context=context)
+
+    print()
+    print_table(results)
+    print(f'\nsim s / wall s: from the first to the last movement seen on odometry. '
+          f'Total wall time {time.monotonic() - wall_start:.1f} s.')
+    failed = [r.motion.label for r in results if r.exit_code != 0]
+    if failed:
+        print('Failed: ' + ', '.join(failed))
+        return 1
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
