@@ -15,7 +15,11 @@ STAMP := $(VENV)/.installed
 ROS_WHEELS := ros-rclpy==7.1.6 ros-geometry-msgs==5.3.6 ros-nav-msgs==5.3.6 \
 	ros-std-srvs==5.3.6 ros-rosgraph-msgs==2.0.3 ros-rmw-fastrtps-cpp==8.4.3 \
 	ros-ament-index-python==1.8.1
-ROS_TEST_WHEELS := ros-ament-flake8==0.17.3 ros-ament-pep257==0.17.3
+# The linters' own dependencies come with ament_flake8/ament_pep257 from apt, not with the wheels:
+# these are the versions Ubuntu 24.04 (Jazzy's platform) ships.
+ROS_TEST_WHEELS := ros-ament-flake8==0.17.3 ros-ament-pep257==0.17.3 \
+	flake8==7.0.0 flake8-builtins==2.1.0 flake8-comprehensions==3.14.0 \
+	flake8-docstrings==1.7.0 flake8-import-order==0.19.2 flake8-quotes==3.3.2 pydocstyle==6.3.0
 PY_DEPS := numpy pytest hypothesis colcon-common-extensions matplotlib
 
 .PHONY: venv test demo lint clean

@@ -26,18 +26,17 @@ import math
 import time
 
 from geometry_msgs.msg import Twist
+from motion_challenges.angles import yaw_from_quaternion
+from motion_challenges.angles import YawAccumulator
+from motion_challenges.parameters import declare
+from motion_challenges.parameters import Spec
+from motion_challenges.runtime import EXIT_FAILED
+from motion_challenges.runtime import EXIT_OK
 from nav_msgs.msg import Odometry
 from rclpy.clock import Clock
 from rclpy.clock import ClockType
 from rclpy.duration import Duration
 from rclpy.node import Node
-
-from motion_challenges.angles import YawAccumulator
-from motion_challenges.angles import yaw_from_quaternion
-from motion_challenges.parameters import declare
-from motion_challenges.parameters import Spec
-from motion_challenges.runtime import EXIT_FAILED
-from motion_challenges.runtime import EXIT_OK
 
 _NS = 1_000_000_000
 # How long to wait for the odometry that shows where the robot came to rest.
@@ -128,6 +127,7 @@ class MotionNode(Node):
         self._wall_start = time.monotonic()
         self._wall_begun = None
         self._ready = False
+        self._primed = False
         self._tick_timer = None
         # Waiting is timed on the wall clock: on sim time, node timers do not fire until the
         # simulator publishes /clock, and a missing simulator is exactly what to report.
@@ -217,6 +217,12 @@ class MotionNode(Node):
             return
         if self.state == 'waiting':
             if self._missing():
+                return
+            if not self._primed:
+                # A first message on a new connection can take several times longer than the
+                # next ones; a zero Twist one tick early keeps the first real command on time.
+                self.stop_robot()
+                self._primed = True
                 return
             self.state = 'running'
             self.start_ns = now_ns

@@ -24,7 +24,6 @@ wrapped yaw from odometry, so 720 degrees is two turns, slowing down near the go
 import math
 import sys
 
-from motion_challenges.motion_node import MotionNode
 from motion_challenges.motion_node import rate_spec
 from motion_challenges.motion_node import TimedMotion
 from motion_challenges.parameters import Spec

@@ -24,12 +24,11 @@ motions' final stop) runs while the context is still valid.
 
 import signal
 
+from motion_challenges.parameters import ParameterError
 import rclpy
 from rclpy.executors import ExternalShutdownException
-from rclpy.executors import SingleThreadedExecutor
+from rclpy.experimental import EventsExecutor
 from rclpy.signals import SignalHandlerOptions
-
-from motion_challenges.parameters import ParameterError
 
 EXIT_OK = 0
 EXIT_FAILED = 1
@@ -68,7 +67,7 @@ def run(make_node, args=None):
     try:
         node = make_node()
         logger = node.get_logger()
-        executor = SingleThreadedExecutor()
+        executor = EventsExecutor()
         executor.add_node(node)
         spin_until_done(executor, node)
         exit_code = getattr(node, 'exit_code', EXIT_OK)
@@ -92,4 +91,3 @@ def run(make_node, args=None):
             node.destroy_node()
         rclpy.try_shutdown()
     return exit_code
-

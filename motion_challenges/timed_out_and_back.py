@@ -57,7 +57,7 @@ def expected_end(start, goal_distance, goal_angle, legs):
 
 
 def legs_summary(node, end_odom):
-    """Closing text for both out-and-back motions."""
+    """Return the closing text for both out-and-back motions."""
     start = node.start_odom
     p = node.params
     if start is None or end_odom is None:

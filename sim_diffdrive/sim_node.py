@@ -26,6 +26,11 @@ import math
 
 from geometry_msgs.msg import Twist
 from geometry_msgs.msg import TwistStamped
+from motion_challenges.angles import quaternion_from_yaw
+from motion_challenges.parameters import declare
+from motion_challenges.parameters import ParameterError
+from motion_challenges.parameters import Spec
+from motion_challenges.runtime import run
 from nav_msgs.msg import Odometry
 from rclpy.clock import Clock
 from rclpy.clock import ClockType
@@ -34,14 +39,8 @@ from rclpy.qos import QoSProfile
 from rclpy.qos import ReliabilityPolicy
 from rclpy.time import Time
 from rosgraph_msgs.msg import Clock as ClockMsg
-from std_srvs.srv import Empty
-
-from motion_challenges.angles import quaternion_from_yaw
-from motion_challenges.parameters import declare
-from motion_challenges.parameters import ParameterError
-from motion_challenges.parameters import Spec
-from motion_challenges.runtime import run
 from sim_diffdrive.kinematics import UnicycleModel
+from std_srvs.srv import Empty
 
 _NS = 1_000_000_000
 _POSITION_LIMIT = 1e6

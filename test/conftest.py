@@ -25,6 +25,7 @@ import random
 import time
 
 from geometry_msgs.msg import Twist
+from motion_challenges.angles import yaw_from_quaternion
 from nav_msgs.msg import Odometry
 import pytest
 import rclpy
@@ -32,8 +33,6 @@ from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-
-from motion_challenges.angles import yaw_from_quaternion
 from sim_diffdrive.sim_node import UnicycleSim
 
 # Fast DDS maps a domain to UDP ports; 1..100 stays clear of 0 (everyone's default) and of the
@@ -249,7 +248,7 @@ class Probe(Node):
 
 @pytest.fixture
 def ros_context():
-    """A fresh rclpy Context (no signal handlers) on this run's domain."""
+    """Yield a fresh rclpy Context (no signal handlers) on this run's domain."""
     context = Context()
     rclpy.init(context=context, domain_id=DOMAIN_ID)
     try:

@@ -18,14 +18,13 @@ from decimal import Decimal
 from decimal import localcontext
 import math
 
-import pytest
-
 from motion_challenges.angles import normalize_angle
 from motion_challenges.angles import quaternion_from_yaw
 from motion_challenges.angles import yaw_from_quaternion
 from motion_challenges.angles import YawAccumulator
-from sim_diffdrive.kinematics import _SMALL_ANGLE
+import pytest
 from sim_diffdrive.kinematics import _sinc
+from sim_diffdrive.kinematics import _SMALL_ANGLE
 from sim_diffdrive.kinematics import integrate
 from sim_diffdrive.kinematics import limit_command
 from sim_diffdrive.kinematics import UnicycleModel

@@ -58,7 +58,7 @@ def stop(process):
 
 @pytest.fixture
 def sim_process(graph):
-    """A unicycle_sim process owning time, and an in-process probe watching its odometry."""
+    """Start a unicycle_sim process owning time, and an in-process probe on its odometry."""
     processes = []
 
     def launch(*params):

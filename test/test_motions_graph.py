@@ -18,14 +18,13 @@ import math
 
 from conftest import angle_error
 from conftest import pose_of
-import pytest
-from rclpy.parameter import Parameter
-
 from motion_challenges.circle_back_and_forth import CircleBackAndForth
 from motion_challenges.odom_out_and_back import OdomOutAndBack
 from motion_challenges.prompts import RotationRequest
 from motion_challenges.rotate_robot import RotateRobot
 from motion_challenges.timed_out_and_back import TimedOutAndBack
+import pytest
+from rclpy.parameter import Parameter
 
 MM = 1e-3
 HUNDREDTH_DEG = math.radians(0.01)

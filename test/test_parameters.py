@@ -16,13 +16,12 @@
 
 import math
 
-import pytest
-from rclpy.node import Node
-from rclpy.parameter import Parameter
-
 from motion_challenges.parameters import declare
 from motion_challenges.parameters import ParameterError
 from motion_challenges.parameters import Spec
+import pytest
+from rclpy.node import Node
+from rclpy.parameter import Parameter
 from sim_diffdrive.sim_node import UnicycleSim
 
 SPEED = Spec('speed', 0.5, 'Forward speed [m/s].', low=0.0, high=2.0)

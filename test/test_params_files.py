@@ -23,14 +23,13 @@ runs an executable from its params file as a user would, over DDS against the si
 from pathlib import Path
 import subprocess
 
-import pytest
-import yaml
-
 from motion_challenges.circle_back_and_forth import CircleBackAndForth
 from motion_challenges.odom_out_and_back import OdomOutAndBack
 from motion_challenges.rotate_robot import RotateRobot
 from motion_challenges.timed_out_and_back import TimedOutAndBack
+import pytest
 from sim_diffdrive.sim_node import UnicycleSim
+import yaml
 
 CONFIG = Path(__file__).resolve().parents[1] / 'config'
 

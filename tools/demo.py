@@ -29,7 +29,7 @@ measured.  The exit code is 1 when a motion process failed or timed out, 0 other
 
 The demo runs on its own ROS domain (random in 1..100, or MOTION_DEMO_DOMAIN_ID) with
 localhost-only discovery, so it never drives anyone else's robot.  Usage:
-``python tools/demo.py [--rtf 10]`` with the venv active (``make demo``).
+``python tools/demo.py [--rtf 5]`` with the venv active (``make demo``).
 """
 
 import argparse
@@ -45,14 +45,13 @@ import sys
 import tempfile
 import time
 
+from motion_challenges.angles import yaw_from_quaternion
 from nav_msgs.msg import Odometry
 import rclpy
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-
-from motion_challenges.angles import yaw_from_quaternion
 
 
 @dataclass(frozen=True)
@@ -251,7 +250,7 @@ def main():
     parser = argparse.ArgumentParser(
         description='Run every motion against unicycle_sim over DDS on simulated time and '
                     'print goal versus achieved pose.')
-    parser.add_argument('--rtf', type=float, default=10.0,
+    parser.add_argument('--rtf', type=float, default=5.0,
                         help='simulated seconds per wall second (default: %(default)s)')
     options = parser.parse_args()
     missing = [e for e in {'unicycle_sim'} | {m.executable for m in MOTIONS}

@@ -20,7 +20,8 @@ else
 fi
 
 pip=("$VENV/bin/python" -m pip --disable-pip-version-check -q)
-"${pip[@]}" install --upgrade pip setuptools wheel
+# colcon-core (for the colcon build test) supports setuptools below 80 only.
+"${pip[@]}" install --upgrade pip 'setuptools<80' wheel
 # shellcheck disable=SC2086
 "${pip[@]}" install $ros_wheels $PY_DEPS
 "${pip[@]}" install -e .
