@@ -22,7 +22,6 @@ with both parts per tick, on ``cmd_vel``, can stop after ``cycles`` and always s
 
 import math
 
-from motion_challenges.motion_node import pose_error_text
 from motion_challenges.motion_node import rate_spec
 from motion_challenges.motion_node import TimedMotion
 from motion_challenges.parameters import Spec
@@ -69,12 +68,8 @@ class CircleBackAndForth(TimedMotion):
         self.progress(f'Cycle {cycle}{total}, driving {leg}')
         return command
 
-    def summary(self, end_odom):
-        start = self.start_odom
-        if start is None:
-            return pose_error_text(None, None, 0.0, 0.0, 0.0)
-        return (f'{self.params.cycles} cycle(s) back to the start: '
-                + pose_error_text(start, end_odom, start.x, start.y, start.yaw))
+    def goal_pose(self, start):
+        return start.x, start.y, start.yaw
 
 
 def main(args=None):

@@ -43,11 +43,22 @@ _NS = 1_000_000_000
 _SETTLE_TICKS = 20
 
 
-def start_timeout_spec():
-    return Spec('start_timeout', 10.0,
-                'How long to wait for the robot (a cmd_vel subscriber, and odometry where the '
-                'motion needs it) before giving up [s, wall time].',
-                low=0.0, high=3600.0, low_open=True)
+COMMON_PARAMETERS = (
+    Spec('start_timeout', 10.0,
+         'How long to wait for the robot (a cmd_vel subscriber, and odometry where the motion '
+         'needs it) before giving up [s, wall time].',
+         low=0.0, high=3600.0, low_open=True),
+    Spec('odom_timeout', 1.0,
+         'Closed loop: stop and fail when no odometry came for this long mid-motion '
+         '[s, wall time].',
+         low=0.0, high=3600.0, low_open=True),
+    Spec('plot_file', '',
+         'Write a PNG of the run (trajectory, start, end and goal) here; empty = no plot. '
+         'Needs matplotlib.'),
+)
+# Odometry that moves further than commanded by more than this between two messages is
+# taken for a jump (e.g. a restarted simulator) [m or rad, plus half the commanded motion].
+_JUMP_TOLERANCE = 0.02
 
 
 def rate_spec(default):
@@ -110,11 +121,13 @@ class MotionNode(Node):
 
     def __init__(self, node_name, specs, **kwargs):
         super().__init__(node_name, **kwargs)
-        self.params = declare(self, tuple(specs) + (start_timeout_spec(),))
+        self.params = declare(self, tuple(specs) + COMMON_PARAMETERS)
         self.period = 1.0 / self.params.rate_hz
         self.cmd_pub = self.create_publisher(Twist, 'cmd_vel', 10)
         self.create_subscription(Odometry, 'odom', self._on_odom, 50)
         self.odom = None
+        self._odom_wall = None
+        self.trajectory = []
         self.start_odom = None
         self.turned = YawAccumulator()
         self.commands = CommandLog()
@@ -185,8 +198,32 @@ class MotionNode(Node):
     # -- callbacks ---------------------------------------------------------------------------
 
     def _on_odom(self, msg):
-        self.odom = OdomPose(msg)
-        self.turned.update(self.odom.yaw)
+        odom = OdomPose(msg)
+        if self.needs_odom and self.state == 'running' and self.odom is not None:
+            fault = self._odom_fault(self.odom, odom)
+            if fault:
+                self.finish(EXIT_FAILED, f'{fault}; stopped the robot rather than drive on '
+                                         'odometry that cannot be trusted (simulator restarted?)')
+                return
+        self.odom = odom
+        self._odom_wall = time.monotonic()
+        self.turned.update(odom.yaw)
+        if self.state in ('running', 'settling'):
+            self.trajectory.append((odom.x, odom.y, odom.yaw))
+
+    def _odom_fault(self, last, odom):
+        """Return why odom cannot follow last (time went back, or a jump), or ''."""
+        if odom.stamp_ns < last.stamp_ns:
+            return (f'Odometry went back in time from {last.stamp_ns / _NS:.3f} s to '
+                    f'{odom.stamp_ns / _NS:.3f} s')
+        metres, radians = self.commands.integral(last.stamp_ns, odom.stamp_ns)
+        moved = odom.distance_to(last)
+        turned = abs(math.remainder(odom.yaw - last.yaw, 2.0 * math.pi))
+        if (moved > 1.5 * abs(metres) + _JUMP_TOLERANCE
+                or turned > 1.5 * abs(radians) + _JUMP_TOLERANCE):
+            return (f'Odometry jumped {moved:.3f} m and {math.degrees(turned):.1f} deg between '
+                    'two messages')
+        return ''
 
     def _missing(self):
         """Return what the motion still waits for, or '' when it can start."""
@@ -197,6 +234,12 @@ class MotionNode(Node):
         return ''
 
     def _on_watchdog(self):
+        if self.needs_odom and self.state == 'running':
+            silent = time.monotonic() - self._odom_wall
+            if silent > self.params.odom_timeout:
+                self.finish(EXIT_FAILED, f'No odometry for {silent:.1f} s mid-motion; stopped '
+                                         'the robot (is the simulator still running?)')
+            return
         if not self._ready or self.state != 'waiting':
             return
         missing = self._missing()
@@ -248,8 +291,25 @@ class MotionNode(Node):
         if fresh or self._settle_ticks > _SETTLE_TICKS or self.start_odom is None:
             sim_s = (self._stop_ns - self.start_ns) / _NS
             wall_s = time.monotonic() - self._wall_begun
-            achieved = self.summary(self.odom if fresh else None)
+            end_odom = self.odom if fresh else None
+            achieved = self.summary(end_odom)
             self.finish(EXIT_OK, f'Done in {sim_s:.3f} s ({wall_s:.3f} s wall): {achieved}')
+            if self.params.plot_file:
+                self._plot(end_odom, achieved)
+
+    def _plot(self, end_odom, achieved):
+        from motion_challenges.plotting import plot_run
+        start = self.start_odom
+        try:
+            plot_run(self.params.plot_file, self.trajectory,
+                     start=(start.x, start.y, start.yaw) if start else None,
+                     end=(end_odom.x, end_odom.y, end_odom.yaw) if end_odom else None,
+                     goal=self.goal_pose(start) if start else None,
+                     title=f'{self.get_name()}: {achieved}')
+        except (ImportError, OSError) as error:
+            self.get_logger().error(f'Could not write plot_file: {error}')
+            return
+        self.get_logger().info(f'Wrote {self.params.plot_file}')
 
     # -- for subclasses ----------------------------------------------------------------------
 
@@ -259,9 +319,15 @@ class MotionNode(Node):
     def control(self, now_ns):
         raise NotImplementedError
 
+    def goal_pose(self, start):
+        """Return the pose (x, y, yaw) the motion should end at, starting from start."""
+        raise NotImplementedError
+
     def summary(self, end_odom):
         """Return the closing line's goal-versus-achieved text (end_odom may be None)."""
-        raise NotImplementedError
+        if self.start_odom is None or end_odom is None:
+            return 'no odometry, achieved pose unknown'
+        return pose_error_text(end_odom, *self.goal_pose(self.start_odom))
 
 
 class TimedMotion(MotionNode):
@@ -288,10 +354,8 @@ class TimedMotion(MotionNode):
         return self._plan.average(t, t + self.period)
 
 
-def pose_error_text(start, end, goal_x, goal_y, goal_yaw):
+def pose_error_text(end, goal_x, goal_y, goal_yaw):
     """Describe how far end is from the goal pose (metres and degrees)."""
-    if end is None or start is None:
-        return 'no odometry, achieved pose unknown'
     error_m = math.hypot(end.x - goal_x, end.y - goal_y)
     error_deg = math.degrees(abs(math.remainder(end.yaw - goal_yaw, 2.0 * math.pi)))
     return (f'goal ({goal_x:.4f}, {goal_y:.4f}, {math.degrees(goal_yaw):.3f} deg), '

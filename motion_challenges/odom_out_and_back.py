@@ -27,7 +27,7 @@ from motion_challenges.motion_node import MotionNode
 from motion_challenges.parameters import Spec
 from motion_challenges.plans import approach_speed
 from motion_challenges.runtime import run
-from motion_challenges.timed_out_and_back import legs_summary
+from motion_challenges.timed_out_and_back import expected_end
 from motion_challenges.timed_out_and_back import out_and_back_specs
 
 # A segment is complete once less than this is left [m or rad].
@@ -106,8 +106,9 @@ class OdomOutAndBack(MotionNode):
             return None
         return 0.0, 0.0
 
-    def summary(self, end_odom):
-        return legs_summary(self, end_odom)
+    def goal_pose(self, start):
+        p = self.params
+        return expected_end(start, p.goal_distance, p.goal_angle, p.legs)
 
 
 def main(args=None):

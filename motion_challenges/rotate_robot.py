@@ -108,6 +108,9 @@ class RotateRobot(TimedMotion):
             math.radians(self.params.angular_accel_deg), self.period)
         return (0.0, self.sign * speed), turned
 
+    def goal_pose(self, start):
+        return start.x, start.y, start.yaw + self.sign * self.goal
+
     def summary(self, end_odom):
         goal_deg = self.sign * self.request.angle_deg
         if end_odom is None:

@@ -23,7 +23,6 @@ so the robot ends where it started, facing the same way, without rbx1's tick rou
 
 import math
 
-from motion_challenges.motion_node import pose_error_text
 from motion_challenges.motion_node import rate_spec
 from motion_challenges.motion_node import TimedMotion
 from motion_challenges.parameters import Spec
@@ -56,17 +55,6 @@ def expected_end(start, goal_distance, goal_angle, legs):
     return x, y, yaw
 
 
-def legs_summary(node, end_odom):
-    """Return the closing text for both out-and-back motions."""
-    start = node.start_odom
-    p = node.params
-    if start is None or end_odom is None:
-        return pose_error_text(None, None, 0.0, 0.0, 0.0)
-    return (f'{p.legs} leg(s) of {p.goal_distance:g} m: '
-            + pose_error_text(start, end_odom, *expected_end(
-                start, p.goal_distance, p.goal_angle, p.legs)))
-
-
 class TimedOutAndBack(TimedMotion):
     """Out and back on the clock (see the module docstring)."""
 
@@ -89,8 +77,9 @@ class TimedOutAndBack(TimedMotion):
         self.progress(f'{self.elapsed(now_ns):.1f} of {self._plan.duration:.1f} s')
         return command
 
-    def summary(self, end_odom):
-        return legs_summary(self, end_odom)
+    def goal_pose(self, start):
+        p = self.params
+        return expected_end(start, p.goal_distance, p.goal_angle, p.legs)
 
 
 def main(args=None):

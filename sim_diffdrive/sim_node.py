@@ -22,8 +22,9 @@ step, ``real_time_factor`` times faster than the wall clock, and publishes it on
 for nodes that run with ``use_sim_time``.
 """
 
-import math
+from collections import deque
 
+from geometry_msgs.msg import PoseStamped
 from geometry_msgs.msg import Twist
 from geometry_msgs.msg import TwistStamped
 from motion_challenges.angles import quaternion_from_yaw
@@ -32,6 +33,7 @@ from motion_challenges.parameters import ParameterError
 from motion_challenges.parameters import Spec
 from motion_challenges.runtime import run
 from nav_msgs.msg import Odometry
+from nav_msgs.msg import Path
 from rclpy.clock import Clock
 from rclpy.clock import ClockType
 from rclpy.node import Node
@@ -43,6 +45,8 @@ from sim_diffdrive.kinematics import UnicycleModel
 from std_srvs.srv import Empty
 
 _NS = 1_000_000_000
+# No ground robot commands more than this [m/s or rad/s]; larger values are refused as garbage.
+_COMMAND_LIMIT = 1e4
 _POSITION_LIMIT = 1e6
 
 PARAMETERS = (
@@ -79,6 +83,13 @@ PARAMETERS = (
          'With publish_clock: simulated seconds per wall second (e.g. 20.0).',
          low=0.0, high=10000.0, low_open=True),
     Spec('stamped', False, 'Subscribe to geometry_msgs/TwistStamped instead of Twist.'),
+    Spec('max_command_age', 0.5,
+         'With stamped: refuse a command stamped further than this from now [s]; 0 = accept all.',
+         low=0.0, high=3600.0),
+    Spec('path_length', 1000, 'Poses kept in the driven path published on path (newest last).',
+         low=1, high=1000000),
+    Spec('path_rate_hz', 10.0, 'Rate at which poses are added to the path [Hz].',
+         low=0.0, high=1000.0, low_open=True),
 )
 
 
@@ -114,10 +125,17 @@ class UnicycleSim(Node):
         self._last_cmd_ns = None
 
         self._odom_pub = self.create_publisher(Odometry, 'odom', 10)
+        self._path_pub = self.create_publisher(Path, 'path', 1)
+        self._path = deque(maxlen=p.path_length)
+        self._path_every = max(1, round(p.rate_hz / p.path_rate_hz))
+        self._odom_count = 0
+        self._check_every = max(1, round(p.rate_hz))
+        self._warned_publishers = False
         if p.stamped:
-            self.create_subscription(TwistStamped, 'cmd_vel', self._on_twist_stamped, 10)
+            sub = self.create_subscription(TwistStamped, 'cmd_vel', self._on_twist_stamped, 10)
         else:
-            self.create_subscription(Twist, 'cmd_vel', self._on_twist, 10)
+            sub = self.create_subscription(Twist, 'cmd_vel', self._on_twist, 10)
+        self._cmd_topic = sub.topic_name
         self.create_service(Empty, '~/reset', self._on_reset)
 
         if p.publish_clock:
@@ -188,27 +206,49 @@ class UnicycleSim(Node):
     # -- commands ---------------------------------------------------------------------------
 
     def _on_twist_stamped(self, msg):
+        stamp_ns = msg.header.stamp.sec * _NS + msg.header.stamp.nanosec
+        age_ns = self.now_ns() - stamp_ns
+        limit_ns = round(self.params.max_command_age * _NS)
+        if stamp_ns != 0 and limit_ns > 0 and abs(age_ns) > limit_ns:
+            when = 'old' if age_ns > 0 else 'in the future'
+            self.get_logger().warning(
+                f'Refusing cmd_vel stamped {abs(age_ns) / _NS:.3f} s {when} (more than '
+                f'max_command_age {self.params.max_command_age:g} s); keeping the last command',
+                throttle_duration_sec=1.0)
+            return
         self._on_twist(msg.twist)
 
     def _on_twist(self, twist):
         linear = twist.linear.x
         angular = twist.angular.z
-        if not (math.isfinite(linear) and math.isfinite(angular)):
+        if not (abs(linear) <= _COMMAND_LIMIT and abs(angular) <= _COMMAND_LIMIT):
+            # NaN fails both comparisons, so it is refused here too.
             self.get_logger().warning(
-                f'Refusing cmd_vel with a non-finite value (linear.x={linear}, '
-                f'angular.z={angular}); keeping the last command',
-                throttle_duration_sec=1.0)
+                f'Refusing cmd_vel with a non-finite or absurd value (linear.x={linear}, '
+                f'angular.z={angular}; the limit is {_COMMAND_LIMIT:g}); keeping the last '
+                'command', throttle_duration_sec=1.0)
             return
         now_ns = self.now_ns()
         self._advance_to(now_ns)
         self.model.command(linear, angular)
         self._last_cmd_ns = now_ns
 
+    def _check_publishers(self):
+        count = self.count_publishers(self._cmd_topic)
+        if count > 1 and not self._warned_publishers:
+            self._warned_publishers = True
+            self.get_logger().warning(
+                f'{count} nodes publish on {self._cmd_topic}: their commands interleave and the '
+                'latest one wins')
+        elif count <= 1:
+            self._warned_publishers = False
+
     def _on_reset(self, request, response):
         p = self.params
         self._advance_to(self.now_ns())
         self.model.reset(p.initial_x, p.initial_y, p.initial_yaw)
         self._last_cmd_ns = None
+        self._path.clear()
         self.get_logger().info('Reset to the initial pose')
         self._publish_odom()
         return response
@@ -230,6 +270,25 @@ class UnicycleSim(Node):
         msg.twist.twist.angular.z = m.angular
         msg.twist.covariance = self._twist_covariance
         self._odom_pub.publish(msg)
+        if self._odom_count % self._path_every == 0:
+            self._record_path(msg)
+        if self._odom_count % self._check_every == 0:
+            # A graph query per second, not per message: cmd_vel may arrive at kHz rates.
+            self._check_publishers()
+        self._odom_count += 1
+
+    def _record_path(self, odom):
+        pose = PoseStamped()
+        pose.header = odom.header
+        pose.pose = odom.pose.pose
+        self._path.append(pose)
+        if self._path_pub.get_subscription_count() == 0:
+            # Converting a long path to a message is the costliest thing here: skip it unseen.
+            return
+        path = Path()
+        path.header = odom.header
+        path.poses = list(self._path)
+        self._path_pub.publish(path)
 
 
 def main(args=None):
