@@ -26,8 +26,8 @@ def _arrow(axes, pose, size, color, label, marker):
     axes.annotate('', xy=(x + size * math.cos(yaw), y + size * math.sin(yaw)), xytext=(x, y),
                   arrowprops={'arrowstyle': '->', 'color': color, 'lw': 2})
     # Hollow markers of different sizes keep a goal visible under an end that hit it.
-    axes.plot([x], [y], marker, color=color, markerfacecolor='none', markersize=_MARKER_SIZE[marker],
-              markeredgewidth=2, label=label)
+    axes.plot([x], [y], marker, color=color, markerfacecolor='none',
+              markersize=_MARKER_SIZE[marker], markeredgewidth=2, label=label)
 
 
 def draw_run(axes, trajectory, start=None, end=None, goal=None, title=''):
