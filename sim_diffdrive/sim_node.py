@@ -23,6 +23,7 @@ for nodes that run with ``use_sim_time``.
 """
 
 from collections import deque
+import time
 
 from geometry_msgs.msg import PoseStamped
 from geometry_msgs.msg import Twist
@@ -47,6 +48,10 @@ from std_srvs.srv import Empty
 _NS = 1_000_000_000
 # No ground robot commands more than this [m/s or rad/s]; larger values are refused as garbage.
 _COMMAND_LIMIT = 1e4
+# Clock pacing: wait this many times the graph's recent reaction time between steps; the
+# remembered reaction time shrinks by this factor per command.
+_PACING_MARGIN = 2.0
+_REACTION_DECAY = 0.98
 _POSITION_LIMIT = 1e6
 
 PARAMETERS = (
@@ -142,8 +147,10 @@ class UnicycleSim(Node):
             self._clock_pub = self.create_publisher(
                 ClockMsg, '/clock', QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE))
             self._integrated_ns = 0
+            self._clock_wall = time.monotonic()
+            self._reaction_s = 0.0
             self.clock_timer = self.create_timer(
-                self._step_ns / _NS / p.real_time_factor, self.step,
+                self._step_ns / _NS / p.real_time_factor, self._on_clock_timer,
                 clock=Clock(clock_type=ClockType.STEADY_TIME))
             self._publish_clock()
         else:
@@ -187,12 +194,20 @@ class UnicycleSim(Node):
         m = self.model
         return bool(m.target_linear or m.target_angular or m.linear or m.angular)
 
+    def _on_clock_timer(self):
+        # real_time_factor is an upper bound: a step waits until the graph has had a few times
+        # its recent reaction time to answer the previous one, so that a command lands on the
+        # step it was sent for even when the machine is loaded.
+        if time.monotonic() - self._clock_wall >= _PACING_MARGIN * self._reaction_s:
+            self.step()
+
     def step(self):
         """Advance simulated time by one step and publish /clock and odometry."""
         self._sim_ns += self._step_ns
         self._advance_to(self._sim_ns)
         self._publish_clock()
         self._publish_odom()
+        self._clock_wall = time.monotonic()
 
     def _on_odom_timer(self):
         self._advance_to(self.now_ns())
@@ -232,6 +247,9 @@ class UnicycleSim(Node):
         self._advance_to(now_ns)
         self.model.command(linear, angular)
         self._last_cmd_ns = now_ns
+        if self._clock_pub is not None:
+            reaction_s = time.monotonic() - self._clock_wall
+            self._reaction_s = max(reaction_s, self._reaction_s * _REACTION_DECAY)
 
     def _check_publishers(self):
         count = self.count_publishers(self._cmd_topic)

@@ -98,6 +98,7 @@ class Observer(Node):
                          parameter_overrides=[Parameter('use_sim_time', value=True)])
         self.first = None
         self.latest = None
+        self.trajectory = []
         self.count = 0
         self.moving = False
         self.move_start = None  # (sim s, wall s) of the last odometry at rest before moving
@@ -109,6 +110,7 @@ class Observer(Node):
         pose = Pose(msg)
         self.first = self.first or pose
         self.latest = pose
+        self.trajectory.append((pose.x, pose.y, pose.yaw))
         self.count += 1
         sample = (msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9, time.monotonic())
         self.moving = bool(msg.twist.twist.linear.x or msg.twist.twist.angular.z)
@@ -130,6 +132,7 @@ class Result:
     end: Pose = None
     sim_s: float = None
     wall_s: float = None
+    trajectory: list = None
 
 
 def spin_until(executor, predicate, timeout):
@@ -195,7 +198,8 @@ def run_motion(motion, context, rtf, log_dir):
         # The resting pose: odometry received after the motion process has gone.
         seen = observer.count
         spin_until(executor, lambda: observer.count > seen + 2 and not observer.moving, 2.0)
-        result = Result(motion, exit_code, observer.first, observer.latest)
+        result = Result(motion, exit_code, observer.first, observer.latest,
+                        trajectory=observer.trajectory)
         if observer.move_start and observer.move_end:
             result.sim_s = observer.move_end[0] - observer.move_start[0]
             result.wall_s = observer.move_end[1] - observer.move_start[1]
@@ -235,6 +239,33 @@ def row(result):
             *seconds, exit_code]
 
 
+def write_figure(results, filename):
+    """Draw every run side by side into one PNG; return False without matplotlib."""
+    try:
+        import matplotlib
+    except ImportError:
+        return False
+    matplotlib.use('Agg')
+    from matplotlib import pyplot
+
+    from motion_challenges.plotting import draw_run
+
+    figure, axes = pyplot.subplots(1, len(results), figsize=(4.2 * len(results), 4.6))
+    for ax, result in zip(axes, results):
+        if result.start is None or result.end is None:
+            ax.set_title(f'{result.motion.label}: no odometry', fontsize='small')
+            continue
+        cells = row(result)
+        start, end = result.start, result.end
+        draw_run(ax, result.trajectory, start=(start.x, start.y, start.yaw),
+                 end=(end.x, end.y, end.yaw), goal=goal_pose(result),
+                 title=f'{cells[0]}\nerror {cells[3]}')
+    figure.tight_layout()
+    figure.savefig(filename, dpi=80)
+    pyplot.close(figure)
+    return True
+
+
 def print_table(results):
     header = ['motion', 'goal', 'achieved', 'error', 'sim s', 'wall s', 'exit']
     rows = [header] + [row(r) for r in results]
@@ -252,6 +283,8 @@ def main():
                     'print goal versus achieved pose.')
     parser.add_argument('--rtf', type=float, default=5.0,
                         help='simulated seconds per wall second (default: %(default)s)')
+    parser.add_argument('--figure', default='demo.png',
+                        help='PNG with every trajectory (default: %(default)s)')
     options = parser.parse_args()
     missing = [e for e in {'unicycle_sim'} | {m.executable for m in MOTIONS}
                if shutil.which(e) is None]
@@ -287,6 +320,10 @@ def main():
     print_table(results)
     print(f'\nsim s / wall s: from the first to the last movement seen on odometry. '
           f'Total wall time {time.monotonic() - wall_start:.1f} s.')
+    if write_figure(results, options.figure):
+        print(f'Trajectories: {os.path.abspath(options.figure)}')
+    else:
+        print('No figure: matplotlib is not installed (pip install matplotlib).')
     failed = [r.motion.label for r in results if r.exit_code != 0]
     if failed:
         print('Failed: ' + ', '.join(failed))
