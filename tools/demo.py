@@ -45,7 +45,7 @@ import sys
 import tempfile
 import time
 
-from motion_challenges.angles import yaw_from_quaternion
+from motion_challenges.motion_node import OdomPose
 from nav_msgs.msg import Odometry
 import rclpy
 from rclpy.context import Context
@@ -79,17 +79,6 @@ MOTIONS = (
 _START_ALLOWANCE = 15.0
 
 
-class Pose:
-    """x, y [m] and yaw [rad] of an Odometry message."""
-
-    def __init__(self, msg):
-        p = msg.pose.pose
-        self.x = p.position.x
-        self.y = p.position.y
-        self.yaw = yaw_from_quaternion(
-            p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w)
-
-
 class Observer(Node):
     """Record the robot's first and latest pose, and when it started and stopped moving."""
 
@@ -107,7 +96,7 @@ class Observer(Node):
         self.create_subscription(Odometry, 'odom', self._on_odom, 50)
 
     def _on_odom(self, msg):
-        pose = Pose(msg)
+        pose = OdomPose(msg)
         self.first = self.first or pose
         self.latest = pose
         self.trajectory.append((pose.x, pose.y, pose.yaw))
@@ -128,8 +117,8 @@ class Observer(Node):
 class Result:
     motion: Motion
     exit_code: object  # int, or 'timeout'
-    start: Pose = None
-    end: Pose = None
+    start: OdomPose = None
+    end: OdomPose = None
     sim_s: float = None
     wall_s: float = None
     trajectory: list = None
