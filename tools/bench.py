@@ -31,11 +31,13 @@ project has a target, whether it was met:
 
 In-process rows run the real simulator node and the real motion nodes in one executor, stepped
 in lockstep (the harness of test/conftest.py, in compact form), so their results are exact and
-independent of machine load.  The benchmark uses a ROS domain of its own (random in 1..100
-unless --domain-id is given) with localhost-only discovery, for itself and every process it
-starts, and stops all of them before it exits.
+independent of machine load; their context has discovery off, so nothing outside it can
+interfere.  Everything else uses a ROS domain of its own (random in 1..100 unless --domain-id
+is given) with localhost-only discovery, for this process and every process it starts, and all
+of those are stopped before the benchmark exits.
 
-Usage (venv active): ``python tools/bench.py [--quick] [--json PATH]``, or ``make bench``.
+Usage (venv active): ``python tools/bench.py [--quick] [--json PATH] [--only GROUPS]``, or
+``make bench``.  The JSON goes to out/bench.json unless --json says otherwise.
 """
 
 import argparse
@@ -53,6 +55,12 @@ import tempfile
 import time
 
 from geometry_msgs.msg import Twist
+from motion_challenges.angles import yaw_from_quaternion
+from motion_challenges.circle_back_and_forth import CircleBackAndForth
+from motion_challenges.odom_out_and_back import OdomOutAndBack
+from motion_challenges.prompts import RotationRequest
+from motion_challenges.rotate_robot import RotateRobot
+from motion_challenges.timed_out_and_back import TimedOutAndBack
 from nav_msgs.msg import Odometry
 import numpy as np
 import rclpy
@@ -64,12 +72,6 @@ from rclpy.experimental import EventsExecutor
 from rclpy.logging import LoggingSeverity
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-
-from motion_challenges.angles import yaw_from_quaternion
-from motion_challenges.circle_back_and_forth import CircleBackAndForth
-from motion_challenges.prompts import RotationRequest
-from motion_challenges.rotate_robot import RotateRobot
-from motion_challenges.timed_out_and_back import TimedOutAndBack
 from sim_diffdrive.kinematics import integrate
 from sim_diffdrive.kinematics import UnicycleModel
 from sim_diffdrive.sim_node import UnicycleSim
@@ -90,6 +92,9 @@ ROTATION = RotationRequest(60.0, 90.0, True)  # deg/s, deg, clockwise
 # The original programs' constants.
 ORIGINAL_PI = 3.14
 
+# Wall seconds (plus one per robot) the scaling rows wait for the motion processes.
+SCALING_TIMEOUT_S = 10.0
+
 ROW_KEYS = (
     'rotate_timed', 'rotate_odom', 'out_and_back_closure', 'circle_closure',
     'integration_error', 'rtf_in_process', 'rtf_processes', 'latency', 'cpu_idle',
@@ -107,8 +112,13 @@ class Sizes:
         self.circle_half_period = 3.0 if quick else 15.0
         self.laps = 100
         self.latency_samples = 10 if quick else 200
-        self.cpu_seconds = 1.0 if quick else 5.0
+        self.cpu_seconds = 0.5 if quick else 5.0
         self.robots = (1, 2) if quick else (1, 4, 16)
+        self.robots_processes = (2,) if quick else self.robots
+        # What each robot drives in the scaling rows: odom_out_and_back, shortened.
+        self.scaling_motion = (
+            {'goal_distance': 0.1, 'angular_speed': 4.0, 'pause': 0.1, 'legs': 1} if quick
+            else {'goal_distance': 0.2, 'angular_speed': 2.0, 'pause': 0.2})
         self.scaling_window_s = 0.5 if quick else 2.0
         # The three default scenarios for the real-time factor (shortened with --quick).
         self.circle_rtf = {'cycles': 1, 'half_period': 1.0 if quick else 15.0}
@@ -132,7 +142,7 @@ def _sleep_ticks(rate_hz, seconds):
 
 def original_rotate(robot, speed_deg, angle_deg, clockwise):
     """
-    Rotate as The Construct's original ``rotate_robot.py`` did, ticking at 10 Hz.
+    Rotate as The Construct's original ``rotate_robot.py`` did (it ticked at 10 Hz).
 
     Degrees to radians with 3.14/180; t0 = the whole seconds of now (``rospy.Time.now().secs``);
     every tick publishes the turn, then estimates the angle turned as speed x (whole seconds of
@@ -230,14 +240,16 @@ class ModelRobot:
 # -- in-process lockstep graph -----------------------------------------------------------------
 
 
-def quiet(node):
-    """Keep a node's progress lines out of the benchmark's output (warnings still show)."""
-    node.get_logger().set_level(LoggingSeverity.WARN)
-    return node
-
-
 def _overrides(params):
     return [Parameter(name, value=value) for name, value in params.items()]
+
+
+def _node_kwargs(namespace=None, **params):
+    """Keyword arguments for an in-process node: parameters, namespace, no /rosout."""
+    kwargs = {'parameter_overrides': _overrides(params), 'enable_rosout': False}
+    if namespace:
+        kwargs['namespace'] = namespace
+    return kwargs
 
 
 class Lockstep:
@@ -250,7 +262,17 @@ class Lockstep:
 
     def __init__(self, executor_class=EventsExecutor, domain_id=None):
         self.context = Context()
-        rclpy.init(context=self.context, domain_id=domain_id)
+        # The nodes of one context match without discovery: keep the graph off the network, so
+        # that no other run on this machine, whatever its domain, can add to the message count.
+        saved = os.environ.get('ROS_AUTOMATIC_DISCOVERY_RANGE')
+        os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'OFF'
+        try:
+            rclpy.init(context=self.context, domain_id=domain_id)
+        finally:
+            if saved is None:
+                del os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE']
+            else:
+                os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = saved
         self.executor = executor_class(context=self.context)
         self.nodes = []
         self.sim = None
@@ -266,7 +288,7 @@ class Lockstep:
         self.close()
 
     def add(self, node):
-        self.nodes.append(quiet(node))
+        self.nodes.append(node)
         self.executor.add_node(node)
         self._instrument()
         return node
@@ -274,27 +296,33 @@ class Lockstep:
     def add_sim(self, namespace=None, **params):
         """Add the simulator that owns time; the benchmark, not a wall timer, steps it."""
         params.setdefault('publish_clock', True)
-        kwargs = {'namespace': namespace} if namespace else {}
-        sim = UnicycleSim(context=self.context, parameter_overrides=_overrides(params), **kwargs)
+        sim = UnicycleSim(context=self.context, **_node_kwargs(namespace, **params))
         sim.clock_timer.cancel()
         self.sim = sim
         return self.add(sim)
 
     def add_node(self, node_class, namespace=None, **params):
         params.setdefault('use_sim_time', True)
-        kwargs = {'namespace': namespace} if namespace else {}
-        return self.add(node_class(context=self.context, parameter_overrides=_overrides(params),
-                                   **kwargs))
+        return self.add(node_class(context=self.context, **_node_kwargs(namespace, **params)))
 
     def add_script(self, rate_hz):
         return self.add(ScriptNode(rate_hz, context=self.context,
-                                   parameter_overrides=_overrides({'use_sim_time': True})))
+                                   **_node_kwargs(use_sim_time=True)))
 
     def remove(self, node):
+        topics = {pub.topic_name for pub in node.publishers}
         self.executor.remove_node(node)
         self.nodes.remove(node)
         node.destroy_node()
         self._instrument()
+
+        # The graph forgets a destroyed publisher a little later: wait, so that the next node
+        # on the topic is not taken for a second publisher.
+        def forgotten():
+            return all(self.sim.count_publishers(topic) <= sum(
+                pub.topic_name == topic for n in self.nodes for pub in n.publishers)
+                for topic in topics)
+        self.spin_until(forgotten, 10.0, poll=0.005)
 
     def close(self):
         try:
@@ -515,8 +543,8 @@ def run_motion(executor_class, make_node, domain_id, sim_rate_hz=50.0, sim_timeo
     """
     Run one motion node to its end against the simulator, in lockstep.
 
-    Returns the start and end poses, the simulated and wall seconds of the stepping, and the
-    node (its start_ns, exit_code).
+    Returns the start and end poses and the simulated and wall seconds of the stepping (to the
+    end of the motion and five steps of rest after it).
     """
     with Lockstep(executor_class, domain_id) as graph:
         graph.add_sim(rate_hz=sim_rate_hz)
@@ -549,8 +577,19 @@ def closure(start, end):
 # -- rows: accuracy --------------------------------------------------------------------------
 
 
+def fmt_small(value, decimals=4):
+    """Format with fixed decimals, or in scientific notation when that would show zeros."""
+    if value != 0.0 and abs(value) < 10.0 ** -(decimals - 1):
+        return f'{value:.1e}'
+    return f'{value:.{decimals}f}'
+
+
 def fmt_deg(values):
-    return f'mean {float(np.mean(values)):.4f}, max {float(np.max(values)):.4f} deg'
+    return f'mean {fmt_small(float(np.mean(values)))}, max {fmt_small(float(np.max(values)))} deg'
+
+
+def fmt_closure(mm, deg):
+    return f'{fmt_small(mm, 3)} mm, {fmt_small(deg)} deg'
 
 
 def met(ok):
@@ -568,15 +607,21 @@ def rows_rotate(sizes, domain_id):
     rows = {}
     for mode in ('timed', 'odom'):
         errors = rotate_project(mode, sizes.starts, domain_id)
+        if mode == 'timed':
+            note = (
+                'Starts spread over one second (project: on the 20 ms step of the 50 Hz '
+                'simulator; original: 0.00, 0.05, ... s past a whole second, 20 Hz simulator '
+                'steps). Original = rotate_robot.py reproduced: 3.14/180, t0 and now in '
+                'whole seconds, 10 Hz ticks publishing the turn, stop once the estimate '
+                'reaches the goal (topic and stop fixed). In-process lockstep on sim time, yaw '
+                'from the simulated odometry.')
+        else:
+            note = ('As the row above, with rotate_robot in odom mode (closed loop on '
+                    'odometry); the same runs of the original.')
         rows['rotate_' + mode] = row(
             f'rotate 90 deg cw at 60 deg/s, yaw error, {mode} mode, {sizes.starts} starts',
             fmt_deg(errors), reference, f'<= {TARGET_YAW_DEG} deg',
-            met(max(errors) <= TARGET_YAW_DEG),
-            f'Starts spread over one second (project: on the 20 ms step of the 50 Hz simulator; '
-            'original: 0.00, 0.05, ... s past a whole second, 20 Hz simulator steps). Original '
-            '= rotate_robot.py reproduced: 3.14/180, t0 and now in whole seconds, 10 Hz ticks '
-            'publishing the turn, stop once the estimate reaches the goal (topic and stop '
-            'fixed). In-process lockstep on sim time, yaw from the simulated odometry.',
+            met(max(errors) <= TARGET_YAW_DEG), note,
             project_errors_deg=errors, original_errors_deg=original)
     return rows
 
@@ -587,12 +632,11 @@ def rows_out_and_back(sizes, project_run, domain_id):
     ref_mm, ref_deg = closure(start, end)
     drive, turn, turned = rbx1_ticks()
     _, slow_turn, slow_turned = rbx1_ticks(angular_speed=0.5)
-    scenario = 'defaults' if not sizes.out_and_back_rtf else (
-        'shortened by --quick: ' + ', '.join(f'{k}={v}' for k, v in
-                                              sizes.out_and_back_rtf.items()))
+    changed = ', '.join(f'{k}={v}' for k, v in sizes.out_and_back_rtf.items())
+    scenario = f'shortened by --quick: {changed}' if changed else 'defaults'
     return row(
-        'timed out-and-back (1 m, pi, 2 legs), closure', f'{mm:.3f} mm, {deg:.4f} deg',
-        f'rbx1 ticks: {ref_mm:.3f} mm, {ref_deg:.4f} deg', f'<= {TARGET_CLOSURE_MM:g} mm',
+        'timed out-and-back (1 m, pi, 2 legs), closure', fmt_closure(mm, deg),
+        f'rbx1 ticks: {fmt_closure(ref_mm, ref_deg)}', f'<= {TARGET_CLOSURE_MM:g} mm',
         met(mm <= TARGET_CLOSURE_MM),
         f'Project: timed_out_and_back ({scenario}), in-process lockstep. rbx1 at 50 Hz on sim '
         f'time, each tick one period: drive int(1.0/0.2*50) = {drive} ticks (exact), turn '
@@ -619,14 +663,16 @@ def rows_circle(sizes, domain_id):
     ref_mm, ref_deg = closure(start, end)
     return row(
         f'circle back-and-forth, closure after {cycles} cycles ({half:g} s half period)',
-        f'{mm:.3f} mm, {deg:.4f} deg', f'move_rob.py model: {ref_mm:.1f} mm, {ref_deg:.3f} deg',
+        fmt_closure(mm, deg), f'move_rob.py model: {fmt_closure(ref_mm, ref_deg)}',
         f'<= {TARGET_CLOSURE_MM:g} mm', met(mm <= TARGET_CLOSURE_MM),
         'move_rob.py modelled at 10 Hz on sim time (rospy sleeps exact): every tick publishes '
-        '(0.5, 0.5) with both signs flipped every 150 ticks; each flip is published twice a '
-        'tick apart, the first Twist with only the angular part, so the robot turns in place '
-        'for 0.1 s at every flip; stopped after the last cycle to measure (the original never '
-        'stops). Were both publishes in the same instant, the first would have no effect on an '
-        'exact simulator. In-process lockstep, 10 Hz simulator steps.',
+        f'(0.5, 0.5) with both signs flipped every {round(10 * half)} ticks; each flip is '
+        'published twice a tick apart, the first Twist with only the angular part, so the '
+        'robot turns in place for 0.1 s at every flip; stopped after the last cycle to measure '
+        '(the original never stops). Were both publishes in the same instant, the first would '
+        'have no effect on an exact simulator. Project: circle_back_and_forth. Both in-process '
+        'lockstep with 10 Hz simulator steps (exact between commands, so the step does not '
+        'change the pose).',
         project_mm=mm, project_deg=deg, move_rob_mm=ref_mm, move_rob_deg=ref_deg,
         cycles=cycles, half_period=half)
 
@@ -673,7 +719,7 @@ def row_integration(sizes):
         f'exact arc: max {e["arc_max_m"]:.1e} m, end {e["arc_end_m"]:.1e} m',
         f'Euler: max {e["euler_max_m"]:.1e} m, end {e["euler_end_m"]:.1e} m; '
         f'ratio {ratio:.1e}', '-', '-',
-        'Against the closed-form circle, pure maths. On a constant circle Euler\'s heading is '
+        "Against the closed-form circle, pure maths. On a constant circle Euler's heading is "
         'exact and its error a phase lag (at most v*dt), largest mid-lap and small at whole '
         'laps; the exact arc stays at rounding level.', ratio_max=ratio, **e)
 
@@ -712,8 +758,12 @@ def rtf_summary(by_scenario):
     return rtfs, identical
 
 
+def fmt_x(factor):
+    return f'{factor:.1f}x' if math.isfinite(factor) else '-'
+
+
 def fmt_rtfs(rtfs):
-    return ', '.join(f'{scenario} {value:.1f}x' for scenario, value in rtfs.items())
+    return ', '.join(f'{scenario} {fmt_x(value)}' for scenario, value in rtfs.items())
 
 
 def row_rtf_in_process(runs):
@@ -734,14 +784,14 @@ def row_rtf_in_process(runs):
         single_threaded_identical=single_same)
 
 
-def scaling_one_process(robots, window_s, domain_id):
+def scaling_one_process(robots, window_s, motion, domain_id):
     """Return the real-time factor of `robots` simulator+motion pairs in one executor."""
     with Lockstep(EventsExecutor, domain_id) as graph:
         graph.add_sim(namespace='/robot0')
         for k in range(1, robots):
             graph.add_node(UnicycleSim, namespace=f'/robot{k}')
         for k in range(robots):
-            graph.add_node(TimedOutAndBack, namespace=f'/robot{k}')
+            graph.add_node(OdomOutAndBack, namespace=f'/robot{k}', **motion)
         graph.wait_for_discovery()
         graph.step(10)  # the motions prime their connection and start
         steps = round(window_s * NS / graph.step_ns)
@@ -779,9 +829,11 @@ class Children:
         return process
 
     def stop(self, process):
-        """Interrupt a child as Ctrl-C would (so a motion stops its robot), then kill it."""
+        """Stop a child with SIGTERM (a motion then stops its robot), then kill it."""
+        # SIGTERM rather than SIGINT: a shell without job control starts background commands
+        # with SIGINT ignored, and children inherit that.
         if process.poll() is None:
-            process.send_signal(signal.SIGINT)
+            process.terminate()
             try:
                 process.wait(timeout=3.0)
             except subprocess.TimeoutExpired:
@@ -793,27 +845,41 @@ class Children:
     def stop_all(self):
         for process in list(self.processes):
             if process.poll() is None:
-                process.send_signal(signal.SIGINT)
+                process.terminate()
         for process in list(self.processes):
             self.stop(process)
+
+
+def log_tail(process, lines=12):
+    """Return the last lines a child process wrote, indented, for an error message."""
+    try:
+        text = process.log_path.read_text()
+    except OSError:
+        return ''
+    return '\n'.join('    ' + line for line in text.splitlines()[-lines:])
 
 
 class Observer(Node):
     """Record odometry: poses, when the robot moved (sim and wall time), and twists."""
 
-    def __init__(self, context, topic='odom'):
-        super().__init__('bench_observer', context=context)
+    def __init__(self, context, commands=False):
+        super().__init__('bench_observer', context=context, enable_rosout=False)
         self.count = 0
-        self.first = None
         self.latest = None
         self.twist = None
         self.received_at = None
+        self.restart()
+        self.create_subscription(Odometry, 'odom', self._on_odom, 100)
+        # Only where this process drives the robot: the simulator warns of a second publisher.
+        self.cmd_pub = self.create_publisher(Twist, 'cmd_vel', 10) if commands else None
+
+    def restart(self):
+        """Forget the start pose and the movement seen so far."""
+        self.first = None
         self.moving = False
         self.move_start = None
         self.move_end = None
         self._at_rest = None
-        self.create_subscription(Odometry, topic, self._on_odom, 100)
-        self.cmd_pub = self.create_publisher(Twist, 'cmd_vel', 10)
 
     def _on_odom(self, msg):
         now = time.perf_counter()
@@ -889,62 +955,95 @@ PROCESS_SCENARIOS = {
 }
 
 
-def run_process_scenario(children, domain_id, scenario, rtf):
-    """Run a motion executable against a unicycle_sim process; measure it on odometry."""
-    executable, params, sim_seconds, turn_deg = PROCESS_SCENARIOS[scenario]
+def run_process_scenarios(children, domain_id, scenarios, rtf, repeats=2):
+    """
+    Run each motion executable `repeats` times, each time against a fresh unicycle_sim.
+
+    Returns {scenario: [result of each run]}, measured on odometry by an observer in this
+    process.
+    """
+    results = {}
     with Session(domain_id) as session:
         observer = session.add(Observer(session.context))
+        for scenario in scenarios:
+            results[scenario] = [run_process_motion(children, session, observer, scenario, rtf)
+                                 for _ in range(repeats)]
+    return results
+
+
+def run_process_motion(children, session, observer, scenario, rtf):
+    """
+    Run one motion executable against a fresh simulator that owns the clock (rtf).
+
+    Fresh, as a user would start them: the simulator paces its clock by what it has seen of
+    the graph, so one that served an earlier motion would start the next at another pace.
+    Returns the resting pose, its error from the goal, the movement's sim and wall seconds,
+    and why the run failed (None when the motion finished with exit code 0).
+    """
+    executable, params, sim_seconds, turn_deg = PROCESS_SCENARIOS[scenario]
+    observer.restart()
+    motion = sim = None
+    failure = None
+    try:
         sim = children.start('unicycle_sim', publish_clock=True, real_time_factor=rtf)
-        motion = None
-        try:
-            if not session.spin_until(lambda: observer.first is not None, 15.0):
-                raise RuntimeError(f'no odometry from unicycle_sim (see {sim.log_path})')
-            motion = children.start(executable, use_sim_time=True, **params)
-            timeout = 15.0 + 3.0 * sim_seconds / rtf
-            if not session.spin_until(lambda: motion.poll() is not None, timeout):
-                raise RuntimeError(f'{executable} did not finish (see {motion.log_path})')
-            if motion.returncode != 0:
-                raise RuntimeError(f'{executable} exited with {motion.returncode}')
-            seen = observer.count
-            session.spin_until(lambda: observer.count > seen + 2 and not observer.moving, 2.0)
-            start, end = observer.first, observer.latest
-            goal = (start[0], start[1], start[2] + math.radians(turn_deg))
-            mm, deg = closure(goal, end)
-            result = {'end': end, 'error_mm': mm, 'error_deg': deg}
-            if observer.move_start and observer.move_end:
-                result['sim_s'] = observer.move_end[0] - observer.move_start[0]
-                result['wall_s'] = observer.move_end[1] - observer.move_start[1]
-            return result
-        finally:
-            for process in (motion, sim):
-                if process is not None:
-                    children.stop(process)
+        if not session.spin_until(lambda: observer.first is not None, 15.0):
+            raise RuntimeError(f'no odometry from unicycle_sim:\n{log_tail(sim)}')
+        motion = children.start(executable, use_sim_time=True, **params)
+        # Process start and discovery, then at least 2x real time.
+        timeout = 10.0 + sim_seconds / 2.0
+        if not session.spin_until(lambda: motion.poll() is not None, timeout):
+            failure = f'{scenario}: not done after {timeout:.0f} s wall'
+        elif motion.returncode != 0:
+            failure = f'{scenario}: exit code {motion.returncode}'
+        seen = observer.count
+        session.spin_until(lambda: observer.count > seen + 2 and not observer.moving, 2.0)
+    finally:
+        for process in (motion, sim):
+            if process is not None:
+                children.stop(process)
+    start, end = observer.first, observer.latest
+    mm, deg = closure((start[0], start[1], start[2] + math.radians(turn_deg)), end)
+    result = {'end': end, 'error_mm': mm, 'error_deg': deg, 'failure': failure}
+    if failure:
+        result['log_tail'] = log_tail(motion)
+    if observer.move_start and observer.move_end:
+        result['sim_s'] = observer.move_end[0] - observer.move_start[0]
+        result['wall_s'] = observer.move_end[1] - observer.move_start[1]
+    return result
 
 
 def row_rtf_processes(sizes, children, domain_id, rtf):
     rtfs = {}
-    identical = True
     errors = {}
-    for scenario in sizes.process_scenarios:
-        runs = [run_process_scenario(children, domain_id, scenario, rtf) for _ in range(2)]
-        sim_s = sum(r.get('sim_s', 0.0) for r in runs)
-        wall_s = sum(r.get('wall_s', 0.0) for r in runs)
-        rtfs[scenario] = sim_s / wall_s if wall_s > 0 else float('nan')
+    results = run_process_scenarios(children, domain_id, sizes.process_scenarios, rtf)
+    failures = [r['failure'] for runs in results.values() for r in runs if r['failure']]
+    identical = not failures
+    for scenario, runs in results.items():
+        timed = [r for r in runs if not r['failure'] and 'sim_s' in r]
+        wall_s = sum(r['wall_s'] for r in timed)
+        rtfs[scenario] = sum(r['sim_s'] for r in timed) / wall_s if wall_s > 0 else math.nan
         identical = identical and runs[0]['end'] == runs[1]['end']
         errors[scenario] = [(r['error_mm'], r['error_deg']) for r in runs]
     worst_mm = max(mm for runs in errors.values() for mm, _ in runs)
     worst_deg = max(deg for runs in errors.values() for _, deg in runs)
+    runs_count = sum(len(runs) for runs in results.values())
+    failed = f'; {len(failures)} of {runs_count} runs failed' if failures else ''
     return row(
         'real-time factor across processes (sim s / wall s), from odometry',
-        f'{fmt_rtfs(rtfs)}; identical: {"yes" if identical else "no"}',
+        f'{fmt_rtfs(rtfs)}; identical: {"yes" if identical else "no"}{failed}',
         f'clock set to {rtf:g}x', f'>= {TARGET_RTF_PROCESSES:g}x',
-        met(min(rtfs.values()) >= TARGET_RTF_PROCESSES),
+        met(not failures and min(rtfs.values()) >= TARGET_RTF_PROCESSES),
         f'unicycle_sim (publish_clock, real_time_factor {rtf:g}, 50 Hz) and the motion '
-        'executable as separate processes over DDS, observed from this process; sim and wall '
-        'seconds from the first to the last movement on odometry. The simulator steps on a '
-        'wall timer and does not wait for the graph, so a command that misses its step lands '
-        f'late: worst error over the runs {worst_mm:.3f} mm, {worst_deg:.4f} deg from the goal.',
-        rtf=rtfs, identical=identical, errors_mm_deg=errors)
+        'executables as separate processes over DDS, observed from this process; sim and wall '
+        'seconds from the first to the last movement on odometry; two runs per motion, each '
+        'against a fresh simulator. The simulator steps its clock on a wall timer '
+        '(real_time_factor is an upper bound) and cannot know when another process has '
+        'answered a step, so a command that misses its step lands late: worst error over the '
+        f'runs {worst_mm:.3f} mm, {worst_deg:.4f} deg from the goal.'
+        + (f' Failed: {"; ".join(failures)}.' if failures else ''),
+        rtf=rtfs, identical=identical, errors_mm_deg=errors, failures=failures,
+        failure_logs=[r['log_tail'] for runs in results.values() for r in runs
+                      if r['failure']])
 
 
 def cpu_seconds(pid):
@@ -966,13 +1065,13 @@ def cpu_percent(session, pid, seconds):
 def rows_sim_process(sizes, children, domain_id):
     """Measure latency and CPU of one unicycle_sim process on wall time (50 Hz)."""
     with Session(domain_id) as session:
-        observer = session.add(Observer(session.context))
+        observer = session.add(Observer(session.context, commands=True))
         sim = children.start('unicycle_sim', rate_hz=50.0)
         try:
             if not session.spin_until(
                     lambda: observer.first is not None
                     and observer.cmd_pub.get_subscription_count() > 0, 15.0):
-                raise RuntimeError(f'no odometry from unicycle_sim (see {sim.log_path})')
+                raise RuntimeError(f'no odometry from unicycle_sim:\n{log_tail(sim)}')
             session.spin_for(0.5)
             idle = cpu_percent(session, sim.pid, sizes.cpu_seconds)
 
@@ -1027,10 +1126,12 @@ def measure_latency(session, observer, samples):
 
 
 def latency_row(latencies, lost):
-    p50, p99 = (float(np.percentile(latencies, q)) for q in (50, 99))
+    p50, p99 = (float(np.percentile(latencies, q)) if latencies else math.nan
+                for q in (50, 99))
     return row(
         'cmd_vel -> odom latency across processes, wall time',
-        f'p50 {p50:.1f} ms, p99 {p99:.1f} ms', 'one odometry period: 20.0 ms',
+        f'p50 {p50:.1f} ms, p99 {p99:.1f} ms' if latencies else 'no sample',
+        'one odometry period: 20.0 ms',
         f'p99 <= {TARGET_LATENCY_P99_MS:g} ms', met(p99 <= TARGET_LATENCY_P99_MS and not lost),
         f'unicycle_sim process at 50 Hz on wall time; this process publishes a Twist with a new '
         f'value and times the first odometry whose twist equals it ({len(latencies)} samples, '
@@ -1044,23 +1145,26 @@ DONE_LINE = re.compile(r'Done in ([0-9.]+) s \(([0-9.]+) s wall\)')
 ERROR_LINE = re.compile(r'error ([0-9.]+) mm, ([0-9.]+) deg')
 
 
-def scaling_processes(children, domain_id, robots, rtf):
+def scaling_processes(children, domain_id, robots, motion, rtf):
     """
-    Run `robots` timed_out_and_back + unicycle_sim pairs as separate processes.
+    Run `robots` odom_out_and_back + unicycle_sim pairs as separate processes.
 
-    Robot 0's simulator owns /clock (publish_clock at rtf) and starts last, once every other
-    process is up; the other simulators and all motions run on that simulated time.  Returns
-    the slowest motion's sim s / wall s and the largest closure error, from their closing lines.
+    Robot 0's simulator owns /clock (publish_clock at rtf, paced by its robot's commands) and
+    starts last, once every other process is up and connected; the other simulators and all
+    motions run on that simulated time.  odom_out_and_back waits for odometry before it moves,
+    so each robot starts once its simulator has heard the clock.  Returns the slowest motion's
+    sim s / wall s, the largest closure error (both from the motions' closing lines) and how
+    many motions did not finish.
     """
     processes = []
     with Session(domain_id) as session:
-        probe = session.add(Node('bench_probe', context=session.context))
+        probe = session.add(Node('bench_probe', context=session.context, enable_rosout=False))
         try:
             for k in range(1, robots):
                 processes.append(children.start('unicycle_sim', namespace=f'/robot{k}',
                                                 use_sim_time=True))
-            motions = [children.start('timed_out_and_back', namespace=f'/robot{k}',
-                                      use_sim_time=True, start_timeout=120.0)
+            motions = [children.start('odom_out_and_back', namespace=f'/robot{k}',
+                                      use_sim_time=True, start_timeout=120.0, **motion)
                        for k in range(robots)]
             processes += motions
 
@@ -1072,47 +1176,58 @@ def scaling_processes(children, domain_id, robots, rtf):
                 raise RuntimeError(f'{robots} robots did not come up')
             processes.append(children.start('unicycle_sim', namespace='/robot0',
                                             publish_clock=True, real_time_factor=rtf))
-            if not session.spin_until(lambda: all(m.poll() is not None for m in motions),
-                                      30.0 + 5.0 * robots, poll=0.05):
-                raise RuntimeError(f'the motions of {robots} robots did not finish')
+            session.spin_until(lambda: all(m.poll() is not None for m in motions),
+                               SCALING_TIMEOUT_S + robots, poll=0.05)
         finally:
             for process in processes:
                 children.stop(process)
-    factors, errors = [], []
+    factors, errors, failed = [], [], 0
     for motion in motions:
         text = motion.log_path.read_text()
         done, error = DONE_LINE.search(text), ERROR_LINE.search(text)
         if motion.returncode != 0 or not done or not error:
-            raise RuntimeError(f'unexpected output from a motion (see {motion.log_path})')
+            failed += 1
+            continue
         sim_s, wall_s = float(done.group(1)), float(done.group(2))
-        factors.append(sim_s / wall_s if wall_s > 0 else float('inf'))
+        factors.append(sim_s / wall_s if wall_s > 0 else math.inf)
         errors.append(float(error.group(1)))
-    return min(factors), max(errors)
+    return {'rtf': min(factors, default=math.nan), 'worst_mm': max(errors, default=math.nan),
+            'failed': failed}
 
 
 def rows_scaling(sizes, children, domain_id, rtf):
-    one = {n: scaling_one_process(n, sizes.scaling_window_s, domain_id) for n in sizes.robots}
-    many = {n: scaling_processes(children, domain_id, n, rtf) for n in sizes.robots}
-    robots = '/'.join(str(n) for n in sizes.robots)
+    motion = sizes.scaling_motion
+    one = {n: scaling_one_process(n, sizes.scaling_window_s, motion, domain_id)
+           for n in sizes.robots}
+    many = {n: scaling_processes(children, domain_id, n, motion, rtf)
+            for n in sizes.robots_processes}
+    drive = 'odom_out_and_back (' + ', '.join(f'{k} {v:g}' for k, v in motion.items()) + ')'
+    one_text = ', '.join(f'N={n}: {v:.1f}x' for n, v in one.items())
+    many_text = ', '.join(
+        f'N={n}: {fmt_x(m["rtf"])} ({m["worst_mm"]:.3f} mm'
+        + (f', {m["failed"]} not done)' if m['failed'] else ')') for n, m in many.items())
     return {
         'scaling_one_process': row(
-            f'N = {robots} robots in one process, real-time factor',
-            ' / '.join(f'{v:.1f}x' for v in one.values()),
-            'N processes: ' + ' / '.join(f'{f:.1f}x' for f, _ in many.values()), '-', '-',
-            'Simulator + timed_out_and_back pairs in namespaces /robotK, all nodes in one '
-            'EventsExecutor; robot 0\'s simulator owns /clock and is stepped in lockstep, the '
+            'N robots in one process, real-time factor', one_text,
+            'as 2N processes: ' + many_text, '-', '-',
+            f'Simulator + {drive} pairs in namespaces /robotK, all nodes in one '
+            "EventsExecutor; robot 0's simulator owns /clock and is stepped in lockstep, the "
             f'others run on sim time. Measured over {sizes.scaling_window_s:g} s of simulated '
             'time, exact.', rtf={str(n): v for n, v in one.items()}),
         'scaling_processes': row(
-            f'N = {robots} robots as 2N processes, real-time factor and worst closure',
-            ' / '.join(f'{f:.1f}x ({e:.3f} mm)' for f, e in many.values()),
-            'one process: ' + ' / '.join(f'{v:.1f}x' for v in one.values()), '-', '-',
-            'unicycle_sim and timed_out_and_back executables per robot (-r __ns:=/robotK). '
-            f'Robot 0\'s simulator owns /clock at real_time_factor {rtf:g} and starts once the '
-            'others are up; the rest use_sim_time. Factor: slowest motion\'s sim s / wall s, '
-            'error: largest closure error, both from the motions\' closing lines.',
-            rtf={str(n): f for n, (f, _) in many.items()},
-            worst_error_mm={str(n): e for n, (_, e) in many.items()}),
+            'N robots as 2N processes, real-time factor (worst closure)', many_text,
+            'one process: ' + one_text, '-', '-',
+            f'unicycle_sim and {drive} executables per robot (-r __ns:=/robotK). '
+            f"Robot 0's simulator owns /clock (real_time_factor {rtf:g}, paced by its "
+            "robot's replies) and starts once all others are connected; the rest "
+            'use_sim_time. odom_out_and_back waits for odometry, so no robot starts before its '
+            "simulator hears the clock. Factor: slowest motion's sim s / wall s; error: "
+            "largest closure error; both from the motions' closing lines of the robots that "
+            f'finished (not done: no closing line within {SCALING_TIMEOUT_S:g} s + 1 s per '
+            'robot of wall time).',
+            rtf={str(n): m['rtf'] for n, m in many.items()},
+            worst_error_mm={str(n): m['worst_mm'] for n, m in many.items()},
+            not_done={str(n): m['failed'] for n, m in many.items()}),
     }
 
 
@@ -1137,7 +1252,9 @@ def print_table(rows, out=sys.stdout):
     header = ['#', 'measure', 'this project', 'reference', 'target', 'result']
     table = [header] + [[str(i), r['measure'], r['project'], r['reference'], r['target'],
                          r['result']] for i, r in enumerate(rows.values(), 1)]
-    widths = [min(max(len(cells[i]) for cells in table), 60) for i in range(len(header))]
+    limits = (2, 34, 38, 38, 12, 6)
+    widths = [min(max(len(cells[i]) for cells in table), limit)
+              for i, limit in enumerate(limits)]
 
     def wrap(text, width):
         lines, line = [], ''
@@ -1159,6 +1276,45 @@ def print_table(rows, out=sys.stdout):
         print(f'{i}. {r["note"]}', file=out)
 
 
+GROUPS = ('rotate', 'rtf', 'out_and_back', 'circle', 'integration', 'processes', 'sim',
+          'scaling')
+
+
+def measure(selected, sizes, children, domain_id, rtf, progress):
+    """Run the selected groups of measurements; return the rows in table order."""
+    rows = {}
+    runs = None
+    if 'rotate' in selected:
+        progress(f'rotate: project (timed, odom) and original from {sizes.starts} start times')
+        rows.update(rows_rotate(sizes, domain_id))
+    if 'rtf' in selected:
+        progress('real-time factor in one process: 2 executors x 3 motions x 2 runs')
+        runs = rtf_in_process(sizes, domain_id)
+        rows['rtf_in_process'] = row_rtf_in_process(runs)
+    if 'out_and_back' in selected:
+        progress('out-and-back: project and rbx1')
+        project = (runs['events']['out_and_back'][0] if runs else run_motion(
+            EventsExecutor, scenario_factories(sizes)['out_and_back'], domain_id))
+        rows['out_and_back_closure'] = rows_out_and_back(sizes, project, domain_id)
+    if 'circle' in selected:
+        progress('circle back-and-forth: project and move_rob.py')
+        rows['circle_closure'] = rows_circle(sizes, domain_id)
+    if 'integration' in selected:
+        progress('Euler against the exact arc')
+        rows['integration_error'] = row_integration(sizes)
+    if 'processes' in selected:
+        progress('real-time factor across processes')
+        rows['rtf_processes'] = row_rtf_processes(sizes, children, domain_id, rtf)
+    if 'sim' in selected:
+        progress('simulator CPU and latency on wall time')
+        rows.update(rows_sim_process(sizes, children, domain_id))
+    if 'scaling' in selected:
+        progress(f'N robots: {sizes.robots} in one process, {sizes.robots_processes} as '
+                 'processes')
+        rows.update(rows_scaling(sizes, children, domain_id, rtf))
+    return {key: rows[key] for key in ROW_KEYS if key in rows}
+
+
 def parse_args(argv):
     parser = argparse.ArgumentParser(
         description='Benchmark this package against the programs it replaces; print a table.')
@@ -1168,9 +1324,11 @@ def parse_args(argv):
                         help='where to write the results as JSON (default: %(default)s)')
     parser.add_argument('--domain-id', type=int, default=None,
                         help='ROS domain to use (default: random in 1..100)')
-    parser.add_argument('--rtf', type=float, default=50.0,
+    parser.add_argument('--only', default=None,
+                        help='comma-separated groups to run, of: ' + ', '.join(GROUPS))
+    parser.add_argument('--rtf', type=float, default=None,
                         help='real_time_factor of the simulator across processes '
-                             '(default: %(default)s)')
+                             '(default: 50, 10 with --quick)')
     return parser.parse_args(argv)
 
 
@@ -1191,6 +1349,8 @@ def main(argv=None):
     os.environ['ROS_DOMAIN_ID'] = str(domain_id)
     os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
     signal.signal(signal.SIGTERM, _interrupt)
+    # The nodes in this process log their progress at INFO: keep it out of the table's way.
+    rclpy.logging.set_logger_level('', LoggingSeverity.WARN)
     sizes = Sizes(options.quick)
     info = machine()
     print(f'{info["nproc"]} x {info["cpu"]}, load {info["loadavg"][0]:.2f}; '
@@ -1198,45 +1358,25 @@ def main(argv=None):
           flush=True)
 
     wall_start = time.monotonic()
-    rows = {}
 
     def progress(text):
         print(f'[{time.monotonic() - wall_start:6.1f} s] {text}', flush=True)
 
+    selected = set(options.only.split(',')) if options.only else set(GROUPS)
+    if selected - set(GROUPS):
+        print(f'Unknown group(s) for --only: {", ".join(sorted(selected - set(GROUPS)))}',
+              file=sys.stderr)
+        return 2
     with tempfile.TemporaryDirectory(prefix='motion_bench_') as log_dir:
         children = Children(log_dir)
         try:
-            progress('rotate: project (timed, odom) and original, lockstep')
-            rotate = rows_rotate(sizes, domain_id)
-            progress('real-time factor in one process, 2 executors x 3 motions x 2 runs')
-            runs = rtf_in_process(sizes, domain_id)
-            progress('out-and-back: rbx1 reference')
-            out_and_back = rows_out_and_back(sizes, runs['events']['out_and_back'][0],
-                                             domain_id)
-            progress('circle back-and-forth: project and move_rob.py')
-            circle = rows_circle(sizes, domain_id)
-            progress('Euler against the exact arc')
-            integration = row_integration(sizes)
-            progress('real-time factor across processes')
-            processes = row_rtf_processes(sizes, children, domain_id, options.rtf)
-            progress('simulator latency and CPU (wall time)')
-            sim_rows = rows_sim_process(sizes, children, domain_id)
-            progress(f'N robots: {sizes.robots}')
-            scaling = rows_scaling(sizes, children, domain_id, options.rtf)
+            rtf = options.rtf or (10.0 if sizes.quick else 50.0)
+            rows = measure(selected, sizes, children, domain_id, rtf, progress)
         except KeyboardInterrupt:
             print('Interrupted', file=sys.stderr)
             return 130
         finally:
             children.stop_all()
-    rows.update(rotate)
-    rows['out_and_back_closure'] = out_and_back
-    rows['circle_closure'] = circle
-    rows['integration_error'] = integration
-    rows['rtf_in_process'] = row_rtf_in_process(runs)
-    rows['rtf_processes'] = processes
-    rows.update(sim_rows)
-    rows.update(scaling)
-    rows = {key: rows[key] for key in ROW_KEYS}
     total = time.monotonic() - wall_start
 
     print()
@@ -1248,17 +1388,22 @@ def main(argv=None):
               'wall_s': total, 'rows': rows}
     path = Path(options.json)
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(report, indent=2, default=_jsonable) + '\n')
+    path.write_text(json.dumps(_jsonable(report), indent=2, allow_nan=False) + '\n')
     print(f'\nJSON: {path}')
     return 0
 
 
 def _jsonable(value):
+    """Return value with numpy numbers as Python ones and NaN or infinity as None."""
+    if isinstance(value, dict):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_jsonable(v) for v in value]
     if isinstance(value, (np.floating, np.integer)):
-        return value.item()
-    if isinstance(value, tuple):
-        return list(value)
-    raise TypeError(f'cannot write {value!r} as JSON')
+        value = value.item()
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
 
 
 if __name__ == '__main__':
