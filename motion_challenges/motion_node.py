@@ -124,7 +124,8 @@ class MotionNode(Node):
         self.params = declare(self, tuple(specs) + COMMON_PARAMETERS)
         self.period = 1.0 / self.params.rate_hz
         self.cmd_pub = self.create_publisher(Twist, 'cmd_vel', 10)
-        self.create_subscription(Odometry, 'odom', self._on_odom, 50)
+        self._odom_topic = self.create_subscription(
+            Odometry, 'odom', self._on_odom, 50).topic_name
         self.odom = None
         self._odom_wall = None
         self.trajectory = []
@@ -229,8 +230,9 @@ class MotionNode(Node):
         """Return what the motion still waits for, or '' when it can start."""
         if self.cmd_pub.get_subscription_count() == 0:
             return f'a subscriber on {self.cmd_pub.topic_name}'
-        if self.needs_odom and self.odom is None:
-            return 'odometry on ' + self.resolve_topic_name('odom')
+        if self.odom is None and (self.needs_odom or self.count_publishers(self._odom_topic)):
+            # Open loop needs no odometry, but where there is some, the closing line uses it.
+            return 'odometry on ' + self._odom_topic
         return ''
 
     def _on_watchdog(self):

@@ -17,9 +17,10 @@ The one ``main()`` shape every executable of this package uses.
 
 rclpy's default SIGINT handler shuts the context down before Python sees KeyboardInterrupt,
 after which a last zero Twist can no longer be published.  So the context is started without
-rclpy's signal handlers, SIGTERM is turned into KeyboardInterrupt like SIGINT, the executor
-waits with a timeout so Python gets to run its handler, and the node's ``shutdown_hook`` (the
-motions' final stop) runs while the context is still valid.
+rclpy's signal handlers and SIGINT and SIGTERM are handled here: while Python code waits (for
+typed input, say) they raise KeyboardInterrupt; while the executor spins they only set a flag,
+checked between waits of at most 0.1 s, so no callback is cut off halfway.  The node's
+``shutdown_hook`` (the motions' final stop) then runs while the context is still valid.
 """
 
 import signal
@@ -38,18 +39,33 @@ EXIT_USAGE = 2
 _SPIN_TIMEOUT = 0.1
 
 
-def _raise_keyboard_interrupt(signum, frame):
-    raise KeyboardInterrupt
+class _Interrupts:
+    """SIGINT/SIGTERM handler: a flag while spinning, KeyboardInterrupt otherwise."""
+
+    def __init__(self):
+        self.spinning = False
+        self.requested = False
+
+    def __call__(self, signum, frame):
+        if not self.spinning:
+            raise KeyboardInterrupt
+        self.requested = True
 
 
 class UsageError(Exception):
     """The user's input cannot start a run (the message says why)."""
 
 
-def spin_until_done(executor, node, timeout_sec=_SPIN_TIMEOUT):
-    """Spin until ``node.done`` is true or the context shuts down."""
-    while executor.context.ok() and not getattr(node, 'done', False):
-        executor.spin_once(timeout_sec=timeout_sec)
+def spin_until_done(executor, node, interrupts):
+    """Spin until ``node.done`` is true, the context shuts down or the user interrupts."""
+    interrupts.spinning = True
+    try:
+        while executor.context.ok() and not getattr(node, 'done', False):
+            executor.spin_once(timeout_sec=_SPIN_TIMEOUT)
+            if interrupts.requested:
+                raise KeyboardInterrupt
+    finally:
+        interrupts.spinning = False
 
 
 def run(make_node, args=None):
@@ -60,7 +76,9 @@ def run(make_node, args=None):
     a user interrupt (Ctrl-C or SIGTERM), 2 for a bad parameter or input, 1 otherwise.
     """
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    signal.signal(signal.SIGTERM, _raise_keyboard_interrupt)
+    interrupts = _Interrupts()
+    signal.signal(signal.SIGINT, interrupts)
+    signal.signal(signal.SIGTERM, interrupts)
     logger = rclpy.logging.get_logger('motion_challenges')
     node = None
     exit_code = EXIT_FAILED
@@ -69,7 +87,7 @@ def run(make_node, args=None):
         logger = node.get_logger()
         executor = EventsExecutor()
         executor.add_node(node)
-        spin_until_done(executor, node)
+        spin_until_done(executor, node, interrupts)
         exit_code = getattr(node, 'exit_code', EXIT_OK)
     except (ParameterError, UsageError) as error:
         logger.error(str(error))

@@ -49,7 +49,8 @@ _NS = 1_000_000_000
 # No ground robot commands more than this [m/s or rad/s]; larger values are refused as garbage.
 _COMMAND_LIMIT = 1e4
 # Clock pacing: wait this many times the graph's recent reaction time between steps; the
-# remembered reaction time shrinks by this factor per command.
+# remembered reaction time shrinks by this factor per step, so a spike is forgotten in a
+# second of simulated time and an idle graph runs at the full real_time_factor.
 _PACING_MARGIN = 2.0
 _REACTION_DECAY = 0.98
 _POSITION_LIMIT = 1e6
@@ -120,8 +121,11 @@ class UnicycleSim(Node):
             p.initial_x, p.initial_y, p.initial_yaw,
             p.max_linear_speed, p.max_angular_speed, p.max_linear_accel, p.max_angular_accel)
         self._step_ns = round(_NS / p.rate_hz)
-        self._pose_covariance = _covariance(p.pose_covariance_diagonal)
-        self._twist_covariance = _covariance(p.twist_covariance_diagonal)
+        self._odom_msg = Odometry()
+        self._odom_msg.header.frame_id = p.odom_frame_id
+        self._odom_msg.child_frame_id = p.base_frame_id
+        self._odom_msg.pose.covariance = _covariance(p.pose_covariance_diagonal)
+        self._odom_msg.twist.covariance = _covariance(p.twist_covariance_diagonal)
         self._timeout_ns = round(p.cmd_vel_timeout * _NS)
 
         # Simulated time in integer nanoseconds so many steps add up without rounding drift.
@@ -199,6 +203,7 @@ class UnicycleSim(Node):
         # its recent reaction time to answer the previous one, so that a command lands on the
         # step it was sent for even when the machine is loaded.
         if time.monotonic() - self._clock_wall >= _PACING_MARGIN * self._reaction_s:
+            self._reaction_s *= _REACTION_DECAY
             self.step()
 
     def step(self):
@@ -249,7 +254,7 @@ class UnicycleSim(Node):
         self._last_cmd_ns = now_ns
         if self._clock_pub is not None:
             reaction_s = time.monotonic() - self._clock_wall
-            self._reaction_s = max(reaction_s, self._reaction_s * _REACTION_DECAY)
+            self._reaction_s = max(reaction_s, self._reaction_s)
 
     def _check_publishers(self):
         count = self.count_publishers(self._cmd_topic)
@@ -275,18 +280,15 @@ class UnicycleSim(Node):
 
     def _publish_odom(self):
         m = self.model
-        msg = Odometry()
+        # One message reused: frames and covariances are set once, in __init__.
+        msg = self._odom_msg
         msg.header.stamp = Time(nanoseconds=self._integrated_ns).to_msg()
-        msg.header.frame_id = self.params.odom_frame_id
-        msg.child_frame_id = self.params.base_frame_id
         msg.pose.pose.position.x = m.x
         msg.pose.pose.position.y = m.y
         q = msg.pose.pose.orientation
         q.x, q.y, q.z, q.w = quaternion_from_yaw(m.yaw)
-        msg.pose.covariance = self._pose_covariance
         msg.twist.twist.linear.x = m.linear
         msg.twist.twist.angular.z = m.angular
-        msg.twist.covariance = self._twist_covariance
         self._odom_pub.publish(msg)
         if self._odom_count % self._path_every == 0:
             self._record_path(msg)
@@ -296,9 +298,14 @@ class UnicycleSim(Node):
         self._odom_count += 1
 
     def _record_path(self, odom):
+        # Copied, not referenced: the odometry message is reused for the next publish.
         pose = PoseStamped()
-        pose.header = odom.header
-        pose.pose = odom.pose.pose
+        pose.header.frame_id = odom.header.frame_id
+        pose.header.stamp = odom.header.stamp
+        pose.pose.position.x = odom.pose.pose.position.x
+        pose.pose.position.y = odom.pose.pose.position.y
+        pose.pose.orientation.z = odom.pose.pose.orientation.z
+        pose.pose.orientation.w = odom.pose.pose.orientation.w
         self._path.append(pose)
         if self._path_pub.get_subscription_count() == 0:
             # Converting a long path to a message is the costliest thing here: skip it unseen.
