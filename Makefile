@@ -22,7 +22,7 @@ ROS_TEST_WHEELS := ros-ament-flake8==0.17.3 ros-ament-pep257==0.17.3 \
 	flake8-docstrings==1.7.0 flake8-import-order==0.19.2 flake8-quotes==3.3.2 pydocstyle==6.3.0
 PY_DEPS := numpy pytest hypothesis colcon-common-extensions matplotlib
 
-.PHONY: venv test demo bench lint clean
+.PHONY: venv test demo bench stress lint clean
 
 venv: $(STAMP)
 
@@ -39,6 +39,9 @@ demo: $(STAMP)
 
 bench: $(STAMP)
 	source $(VENV)/bin/activate && python tools/bench.py
+
+stress: $(STAMP)
+	source $(VENV)/bin/activate && python tools/stress.py
 
 lint: $(STAMP)
 	source $(VENV)/bin/activate && python -m pytest -q test/test_flake8.py test/test_pep257.py

@@ -35,6 +35,7 @@ from motion_challenges.runtime import EXIT_OK
 from nav_msgs.msg import Odometry
 from rclpy.clock import Clock
 from rclpy.clock import ClockType
+from rclpy.clock import JumpThreshold
 from rclpy.duration import Duration
 from rclpy.node import Node
 
@@ -147,6 +148,12 @@ class MotionNode(Node):
         # simulator publishes /clock, and a missing simulator is exactly what to report.
         self._watchdog = self.create_timer(
             0.5, self._on_watchdog, clock=Clock(clock_type=ClockType.STEADY_TIME))
+        # A restarted simulator's clock starts again from zero, and its first odometry may
+        # reach us only once its time has passed the last we had: watch the clock itself.
+        self._time_jump = self.get_clock().create_jump_callback(
+            JumpThreshold(min_forward=None, min_backward=Duration(nanoseconds=-1),
+                          on_clock_change=False),
+            post_callback=self._on_time_jump)
 
     # -- lifecycle ---------------------------------------------------------------------------
 
@@ -171,8 +178,9 @@ class MotionNode(Node):
         """Leave the robot stopped, whatever ended the run."""
         if self.context.ok():
             self.stop_robot()
-            # Give the last Twist time to reach the robot before the process goes away.
-            self.cmd_pub.wait_for_all_acked(Duration(seconds=1.0))
+            # Fast DDS sends within publish(); its acknowledgement waits for a heartbeat that
+            # can be seconds away, so only a short wait covers a resend on a lossy link.
+            self.cmd_pub.wait_for_all_acked(Duration(seconds=0.2))
 
     # -- helpers for subclasses --------------------------------------------------------------
 
@@ -212,6 +220,13 @@ class MotionNode(Node):
         if self.state in ('running', 'settling'):
             self.trajectory.append((odom.x, odom.y, odom.yaw))
 
+    def _on_time_jump(self, jump):
+        if self.needs_odom and self.state == 'running':
+            back_s = -jump.delta.nanoseconds / _NS
+            self.finish(EXIT_FAILED, f'Simulated time went back {back_s:.3f} s; stopped the '
+                                     'robot rather than drive on odometry that cannot be '
+                                     'trusted (simulator restarted?)')
+
     def _odom_fault(self, last, odom):
         """Return why odom cannot follow last (time went back, or a jump), or ''."""
         if odom.stamp_ns < last.stamp_ns:
@@ -219,11 +234,14 @@ class MotionNode(Node):
                     f'{odom.stamp_ns / _NS:.3f} s')
         metres, radians = self.commands.integral(last.stamp_ns, odom.stamp_ns)
         moved = odom.distance_to(last)
-        turned = abs(math.remainder(odom.yaw - last.yaw, 2.0 * math.pi))
+        turned = math.remainder(odom.yaw - last.yaw, 2.0 * math.pi)
+        # The robot may turn less than commanded (or not at all), but not more, nor the other
+        # way: a restarted simulator back at its initial heading often looks like that.
         if (moved > 1.5 * abs(metres) + _JUMP_TOLERANCE
-                or turned > 1.5 * abs(radians) + _JUMP_TOLERANCE):
-            return (f'Odometry jumped {moved:.3f} m and {math.degrees(turned):.1f} deg between '
-                    'two messages')
+                or not (min(0.0, 1.5 * radians) - _JUMP_TOLERANCE <= turned
+                        <= max(0.0, 1.5 * radians) + _JUMP_TOLERANCE)):
+            return (f'Odometry jumped {moved:.3f} m and {math.degrees(abs(turned)):.1f} deg '
+                    'between two messages')
         return ''
 
     def _missing(self):
@@ -237,6 +255,16 @@ class MotionNode(Node):
 
     def _on_watchdog(self):
         if self.needs_odom and self.state == 'running':
+            publishers = self.count_publishers(self._odom_topic)
+            if publishers != 1:
+                # A simulator restarted after a crash shows up beside its predecessor (gone
+                # for good, but still in discovery for a while): its odometry can look
+                # continuous when its clock or pose happens to have caught up with the last.
+                self.finish(EXIT_FAILED, f'{publishers} publishers on {self._odom_topic} '
+                                         'mid-motion; stopped the robot rather than drive on '
+                                         'odometry that cannot be trusted (simulator '
+                                         'restarted?)')
+                return
             silent = time.monotonic() - self._odom_wall
             if silent > self.params.odom_timeout:
                 self.finish(EXIT_FAILED, f'No odometry for {silent:.1f} s mid-motion; stopped '

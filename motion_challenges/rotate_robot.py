@@ -123,6 +123,10 @@ class RotateRobot(TimedMotion):
 def ask_missing(node, read_line=None, write=None):
     """Ask on stdin for the values not given as parameters, then start the node."""
     p = node.params
+    if read_line is None and hasattr(sys.stdin, 'reconfigure'):
+        # Strict decoding drops the whole buffered chunk at one undecodable byte, and with it
+        # the answers piped after it: keep such bytes as escapes, so only their line is refused.
+        sys.stdin.reconfigure(errors='surrogateescape')
     try:
         request = ask_rotation(
             read_line or sys.stdin.readline, write or stream_writer(sys.stdout),

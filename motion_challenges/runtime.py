@@ -29,6 +29,7 @@ from motion_challenges.parameters import ParameterError
 import rclpy
 from rclpy.executors import ExternalShutdownException
 from rclpy.experimental import EventsExecutor
+from rclpy.impl.implementation_singleton import rclpy_implementation
 from rclpy.signals import SignalHandlerOptions
 
 EXIT_OK = 0
@@ -75,11 +76,16 @@ def run(make_node, args=None):
     Returns the process exit code: the node's ``exit_code`` when it finishes by itself, 0 for
     a user interrupt (Ctrl-C or SIGTERM), 2 for a bad parameter or input, 1 otherwise.
     """
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    logger = rclpy.logging.get_logger('motion_challenges')
+    try:
+        rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    except rclpy_implementation.RCLError as error:
+        # A malformed command line (say -p rate_hz:=[1) is bad input, not a crash.
+        logger.error(f'Bad command-line arguments: {error}')
+        return EXIT_USAGE
     interrupts = _Interrupts()
     signal.signal(signal.SIGINT, interrupts)
     signal.signal(signal.SIGTERM, interrupts)
-    logger = rclpy.logging.get_logger('motion_challenges')
     node = None
     exit_code = EXIT_FAILED
     try:

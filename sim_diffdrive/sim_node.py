@@ -153,6 +153,9 @@ class UnicycleSim(Node):
             self._integrated_ns = 0
             self._clock_wall = time.monotonic()
             self._reaction_s = 0.0
+            self._answered = True
+            # Pacing never makes simulated time slower than real time.
+            self._max_reaction_s = self._step_ns / _NS / _PACING_MARGIN
             self.clock_timer = self.create_timer(
                 self._step_ns / _NS / p.real_time_factor, self._on_clock_timer,
                 clock=Clock(clock_type=ClockType.STEADY_TIME))
@@ -213,6 +216,7 @@ class UnicycleSim(Node):
         self._publish_clock()
         self._publish_odom()
         self._clock_wall = time.monotonic()
+        self._answered = False
 
     def _on_odom_timer(self):
         self._advance_to(self.now_ns())
@@ -252,8 +256,12 @@ class UnicycleSim(Node):
         self._advance_to(now_ns)
         self.model.command(linear, angular)
         self._last_cmd_ns = now_ns
-        if self._clock_pub is not None:
-            reaction_s = time.monotonic() - self._clock_wall
+        if self._clock_pub is not None and not self._answered:
+            # Only the first command after a step answers it: commands from a publisher that
+            # does not follow the clock (teleop, a second controller, a flood) arrive at any
+            # time, and counting each would double the wait every step until time stood still.
+            self._answered = True
+            reaction_s = min(time.monotonic() - self._clock_wall, self._max_reaction_s)
             self._reaction_s = max(reaction_s, self._reaction_s)
 
     def _check_publishers(self):

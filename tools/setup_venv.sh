@@ -10,6 +10,13 @@ if ! "$PYTHON" -c 'import venv, ensurepip' 2>/dev/null; then
   apt-get update -qq && apt-get install -y -qq python3-venv >/dev/null
 fi
 
+if ! command -v ip >/dev/null 2>&1 && [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then
+  # test_two_hosts.py makes two network namespaces with `ip` (iproute2); it skips without it.
+  echo "Installing iproute2 (for the two-hosts test) ..."
+  { apt-get update -qq && apt-get install -y -qq iproute2 >/dev/null; } \
+    || echo "Could not install iproute2: the two-hosts test will be skipped."
+fi
+
 if [ "${ROS_DISTRO:-}" = "jazzy" ]; then
   echo "ROS 2 Jazzy is sourced: using its rclpy; the venv sees the system packages."
   "$PYTHON" -m venv --system-site-packages "$VENV"

@@ -1,0 +1,147 @@
+# Copyright 2026 motion_challenges contributors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Two hosts: the simulator on one, a motion on the other, talking DDS over a network link.
+
+The test makes the two hosts itself: two Linux network namespaces joined by a veth pair with a
+private /30 between them, so nothing leaves the pair and no other run can hear it.  The
+simulator owns time (``publish_clock``) in one namespace; ``timed_out_and_back`` runs on
+simulated time in the other, with ``ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET`` and the peer's
+address in ``ROS_STATIC_PEERS``.  Fast DDS would otherwise take its shared-memory shortcut
+between two processes on one kernel, so only UDP is allowed, and the veth's counters prove
+that the traffic crossed the link.  The motion must end as exactly as on one host.
+
+Needs root and ``ip`` from iproute2; skipped, saying why, where namespaces cannot be made.
+"""
+
+from dataclasses import dataclass
+import json
+import os
+import re
+import secrets
+import shutil
+import subprocess
+
+import pytest
+
+# RFC 2544's benchmarking range, on a link that exists only between the two namespaces.
+SIM_IP = '198.18.0.1'
+MOTION_IP = '198.18.0.2'
+REAL_TIME_FACTOR = 8.0
+MOTION_PARAMS = ('use_sim_time:=true', 'goal_distance:=0.3', 'pause:=0.2')
+# On one host, in lockstep and across processes alike, the out-and-back ends exactly at its
+# start; a command landing one simulator step late would cost millimetres.
+MAX_ERROR_MM = 1.0
+MAX_ERROR_DEG = 0.01
+
+
+@dataclass
+class Host:
+    """One network namespace with its end of the link."""
+
+    netns: str
+    interface: str
+    address: str
+    peer: str
+
+
+def _ip(*args, check=True):
+    result = subprocess.run(['ip', *args], capture_output=True, text=True, timeout=20)
+    if check and result.returncode != 0:
+        raise RuntimeError(f'ip {" ".join(args)}: {result.stderr.strip()}')
+    return result
+
+
+@pytest.fixture
+def two_hosts():
+    """Yield (sim host, motion host); both namespaces are deleted afterwards."""
+    if os.geteuid() != 0:
+        pytest.skip('network namespaces need root')
+    if shutil.which('ip') is None:
+        pytest.skip('needs ip from iproute2 (apt-get install iproute2)')
+    # Unique per run: veth names have at most 15 characters.
+    tag = f'{os.getpid() % 100000:05d}{secrets.token_hex(2)}'
+    sim = Host(f'mc_sim_{tag}', f'mcs{tag}', SIM_IP, MOTION_IP)
+    motion = Host(f'mc_motion_{tag}', f'mcm{tag}', MOTION_IP, SIM_IP)
+    created = []
+    try:
+        for host in (sim, motion):
+            result = _ip('netns', 'add', host.netns, check=False)
+            if result.returncode != 0:
+                pytest.skip(f'cannot create a network namespace: {result.stderr.strip()}')
+            created.append(host.netns)
+        _ip('link', 'add', sim.interface, 'netns', sim.netns, 'type', 'veth',
+            'peer', 'name', motion.interface, 'netns', motion.netns)
+        for host in (sim, motion):
+            _ip('-n', host.netns, 'addr', 'add', f'{host.address}/30', 'dev', host.interface)
+            _ip('-n', host.netns, 'link', 'set', 'lo', 'up')
+            _ip('-n', host.netns, 'link', 'set', host.interface, 'up')
+            # Discovery multicast goes out over the link too.
+            _ip('-n', host.netns, 'route', 'add', '224.0.0.0/4', 'dev', host.interface)
+        yield sim, motion
+    finally:
+        # Deleting a namespace deletes its end of the veth pair, and with it the other end.
+        for netns in created:
+            _ip('netns', 'del', netns, check=False)
+
+
+def received_packets(host):
+    stats = json.loads(_ip('-n', host.netns, '-j', '-s', 'link', 'show', 'dev',
+                           host.interface).stdout)
+    return stats[0]['stats64']['rx']['packets']
+
+
+def start_on(host, tmp_path, executable, *params):
+    path = shutil.which(executable)
+    assert path, f'{executable} is not on PATH; install the package (make venv)'
+    env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE='SUBNET', ROS_STATIC_PEERS=host.peer,
+               FASTDDS_BUILTIN_TRANSPORTS='UDPv4')
+    args = [arg for param in params for arg in ('-p', param)]
+    log = open(tmp_path / f'{executable}.log', 'w')
+    process = subprocess.Popen(['ip', 'netns', 'exec', host.netns, path, '--ros-args', *args],
+                               stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT,
+                               env=env)
+    log.close()
+    return process
+
+
+def test_motion_and_simulator_on_two_hosts_end_as_exactly_as_on_one(two_hosts, tmp_path):
+    sim_host, motion_host = two_hosts
+    before = received_packets(motion_host)
+    sim = start_on(sim_host, tmp_path, 'unicycle_sim', 'publish_clock:=true',
+                   f'real_time_factor:={REAL_TIME_FACTOR}')
+    motion = start_on(motion_host, tmp_path, 'timed_out_and_back', *MOTION_PARAMS)
+    try:
+        code = motion.wait(60.0)
+    finally:
+        for process in (motion, sim):
+            if process.poll() is None:
+                process.terminate()
+                try:
+                    process.wait(10.0)
+                except subprocess.TimeoutExpired:
+                    process.kill()
+                    process.wait()
+    output = (tmp_path / 'timed_out_and_back.log').read_text()
+    sim_output = (tmp_path / 'unicycle_sim.log').read_text()
+    assert code == 0, output + sim_output
+    done = re.search(r'Done in .*error ([0-9.]+) mm, ([0-9.]+) deg', output)
+    assert done, output
+    error_mm, error_deg = float(done.group(1)), float(done.group(2))
+    assert error_mm <= MAX_ERROR_MM and error_deg <= MAX_ERROR_DEG, done.group(0)
+    # /clock and odometry at 50 Hz of simulated time for about 10 s reached the motion over
+    # the link: a thousand packets, not the few dozen that discovery alone would take.
+    assert received_packets(motion_host) - before > 500
+    assert 'Traceback' not in output + sim_output
