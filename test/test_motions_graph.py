@@ -87,3 +87,15 @@ def test_circle_returns_after_each_cycle_and_reaches_two_radii(graph):
     # Chord of an arc of radius v/w over angle w*half.
     assert far == pytest.approx(2 * v / w * math.sin(w * half / 2), abs=MM)
     assert probe.odom.twist.twist.linear.x == 0.0
+
+
+def test_circle_with_defaults_reaches_the_diameter_and_comes_back(graph):
+    graph.sim()
+    probe = graph.probe()
+    # Defaults: 0.5 m/s, 0.5 rad/s, 15 s: the 7.5 rad arc passes the far side of its circle.
+    node = build(graph, CircleBackAndForth, cycles=1)
+    run_to_end(graph, node, sim_timeout=40.0)
+    far = max(math.hypot(*pose_of(o)[:2]) for o in probe.odoms)
+    assert far == pytest.approx(2 * 0.5 / 0.5, abs=MM)
+    x, y, _ = pose_of(probe.odom)
+    assert math.hypot(x, y) < MM
