@@ -22,7 +22,6 @@ on one machine (and the subprocesses they start) never hear each other.
 import math
 import os
 import random
-import time
 
 from geometry_msgs.msg import Twist
 from motion_challenges.angles import yaw_from_quaternion
@@ -33,6 +32,7 @@ from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from sim_diffdrive.lockstep import Lockstep
 from sim_diffdrive.sim_node import UnicycleSim
 
 # Fast DDS maps a domain to UDP ports; 1..100 stays clear of 0 (everyone's default) and of the
@@ -62,111 +62,25 @@ def angle_error(a, b):
     return abs(math.remainder(a - b, 2.0 * math.pi))
 
 
-class Graph:
-    """The nodes of one test, spun by one executor in this process."""
+class Graph(Lockstep):
+    """The nodes of one test, spun by one executor in this process (see Lockstep)."""
 
     def __init__(self, context):
+        super().__init__(SingleThreadedExecutor(context=context))
         self.context = context
-        self.executor = SingleThreadedExecutor(context=context)
-        self.nodes = []
-        self.lockstep_sim = None
-        self._published = {}
-        self._received = [0]
-
-    def add(self, node):
-        self.nodes.append(node)
-        self.executor.add_node(node)
-        return node
 
     def sim(self, lockstep=True, **params):
         """
         Start a simulator that owns time (publish_clock) with the given parameters.
 
-        In lockstep (the default) the test, not the wall clock, steps simulated time, and each
-        step waits until every message and every due timer in this graph has been handled, so
-        results are exact and independent of machine load.
+        In lockstep (the default) the test, not the wall clock, steps simulated time; see
+        sim_diffdrive.lockstep.
         """
         params.setdefault('publish_clock', True)
         params.setdefault('real_time_factor', TEST_REAL_TIME_FACTOR)
-        sim = self.add(UnicycleSim(context=self.context, parameter_overrides=[
-            Parameter(name, value=value) for name, value in params.items()]))
-        if lockstep:
-            sim.clock_timer.cancel()
-            self.lockstep_sim = sim
-        return sim
-
-    # -- lockstep -----------------------------------------------------------------------------
-
-    def _count_traffic(self):
-        """Count every message sent and handled by the graph's nodes from now on."""
-        for node in self.nodes:
-            for pub in node.publishers:
-                if getattr(pub, '_counted', False):
-                    continue
-                counter = self._published.setdefault(pub.topic_name, [0])
-                original = pub.publish
-
-                def publish(msg, original=original, counter=counter):
-                    counter[0] += 1
-                    original(msg)
-                pub.publish = publish
-                pub._counted = True
-            for sub in node.subscriptions:
-                if getattr(sub, '_counted', False):
-                    continue
-                original = sub.callback
-
-                def callback(msg, original=original):
-                    self._received[0] += 1
-                    original(msg)
-                sub.callback = callback
-                sub._counted = True
-
-    def _subscribers(self, topic):
-        return sum(1 for n in self.nodes for s in n.subscriptions if s.topic_name == topic)
-
-    def _settled(self, now_ns):
-        expected = sum(c[0] * self._subscribers(t) for t, c in self._published.items())
-        if self._received[0] != expected:
-            return False
-        for node in self.nodes:
-            if node is self.lockstep_sim:
-                continue
-            if node.get_parameter('use_sim_time').value and (
-                    node.get_clock().now().nanoseconds != now_ns):
-                return False
-            if any(not t.is_canceled() and t.time_until_next_call() is not None
-                   and t.time_until_next_call() <= 0 for t in node.timers):
-                return False
-        return True
-
-    def _wait_for_discovery(self, timeout=10.0):
-        def matched():
-            return all(pub.get_subscription_count() >= self._subscribers(pub.topic_name)
-                       for node in self.nodes for pub in node.publishers)
-        assert self.spin_until(matched, timeout), 'nodes in the graph did not discover each other'
-
-    def step(self, steps=1, timeout=5.0):
-        """Advance simulated time by whole simulator steps, letting the graph settle after each."""
-        sim = self.lockstep_sim
-        self._count_traffic()
-        for _ in range(steps):
-            sim.step()
-            now_ns = sim.now_ns()
-            assert self.spin_until(lambda: self._settled(now_ns), timeout, poll=0.001), (
-                f'graph did not settle at t={now_ns * 1e-9:.3f} s')
-
-    def step_until(self, predicate, sim_timeout):
-        """Step until predicate() holds; fail after sim_timeout simulated seconds."""
-        self._wait_for_discovery()
-        end_ns = self.lockstep_sim.now_ns() + int(sim_timeout * 1e9)
-        while not predicate():
-            assert self.lockstep_sim.now_ns() < end_ns, 'condition not reached in sim time'
-            self.step()
-
-    def step_for(self, seconds):
-        self._wait_for_discovery()
-        self.step(round(seconds * self.lockstep_sim.params.rate_hz))
+        sim = UnicycleSim(context=self.context, parameter_overrides=[
+            Parameter(name, value=value) for name, value in params.items()])
+        return self.add_clock_owner(sim) if lockstep else self.add(sim)
 
     def probe(self, **params):
         params.setdefault('use_sim_time', True)
@@ -174,24 +88,10 @@ class Graph:
             Parameter(name, value=value) for name, value in params.items()]))
 
     def spin_until(self, predicate, timeout=10.0, poll=0.05):
-        """Spin until predicate() is true; return whether it became true within timeout (wall)."""
-        deadline = time.monotonic() + timeout
-        while not predicate():
-            if time.monotonic() > deadline:
-                return False
-            self.executor.spin_once(timeout_sec=poll)
-        return True
+        return super().spin_until(predicate, timeout, poll)
 
     def spin_for(self, seconds):
-        deadline = time.monotonic() + seconds
-        while time.monotonic() < deadline:
-            self.executor.spin_once(timeout_sec=0.01)
-
-    def close(self):
-        for node in reversed(self.nodes):
-            self.executor.remove_node(node)
-            node.destroy_node()
-        self.executor.shutdown()
+        self.spin_until(lambda: False, seconds, poll=0.01)
 
 
 class Probe(Node):

@@ -84,15 +84,15 @@ def assert_pose(odom, expected, tol=1e-12):
 
 def settle(graph):
     """Spin until every message sent so far has been handled, without stepping time."""
-    now_ns = graph.lockstep_sim.now_ns()
-    assert graph.spin_until(lambda: graph._settled(now_ns), timeout=5.0, poll=0.001)
+    now_ns = graph.now_ns
+    assert graph.spin_until(lambda: graph.settled(now_ns), timeout=5.0, poll=0.001)
 
 
 def command(graph, probe, v, w):
     """Send one Twist now and return the simulated time at which the simulator applied it."""
     probe.send(v, w)
     settle(graph)
-    return graph.lockstep_sim.now_ns()
+    return graph.now_ns
 
 
 # -- cmd_vel timeout ---------------------------------------------------------------------------
@@ -213,7 +213,7 @@ def test_reset_service_returns_to_the_initial_pose_at_rest(graph):
         future = client.call_async(Empty.Request())
         assert graph.spin_until(future.done, timeout=5.0, poll=0.001)
         assert future.result() is not None
-        t_reset = graph.lockstep_sim.now_ns()
+        t_reset = graph.now_ns
         assert t_reset == t0 + NS // 2
         graph.step_for(0.3)
         after = probe.odoms[seen:]
@@ -328,7 +328,7 @@ def test_stamped_cmd_vel_drives_the_robot(graph):
     msg.twist.angular.z = w
     stamped_pub.publish(msg)
     settle(graph)
-    t0 = graph.lockstep_sim.now_ns()
+    t0 = graph.now_ns
     graph.step_for(1.0)
     assert stamp_ns(probe.odom) == t0 + NS
     assert_pose(probe.odom, arc(0.0, 0.0, 0.0, v, w, 1.0))

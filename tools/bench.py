@@ -74,6 +74,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sim_diffdrive.kinematics import integrate
 from sim_diffdrive.kinematics import UnicycleModel
+from sim_diffdrive.lockstep import Lockstep
 from sim_diffdrive.sim_node import UnicycleSim
 
 NS = 1_000_000_000
@@ -252,13 +253,8 @@ def _node_kwargs(namespace=None, **params):
     return kwargs
 
 
-class Lockstep:
-    """
-    One in-process graph stepped in lockstep with a simulator that owns time.
-
-    Each step advances the simulator's clock by one step, then spins until every message sent
-    in the graph has been handled and no timer is due, so results are exact on any machine.
-    """
+class Graph(Lockstep):
+    """A lockstep graph (sim_diffdrive.lockstep) with its own context, off the network."""
 
     def __init__(self, executor_class=EventsExecutor, domain_id=None):
         self.context = Context()
@@ -273,33 +269,22 @@ class Lockstep:
                 del os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE']
             else:
                 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = saved
-        self.executor = executor_class(context=self.context)
-        self.nodes = []
-        self.sim = None
-        self.steps = 0
-        self._subscribers = {}
-        self._sent = 0
-        self._handled = 0
+        super().__init__(executor_class(context=self.context))
 
     def __enter__(self):
         return self
 
     def __exit__(self, *exc):
-        self.close()
-
-    def add(self, node):
-        self.nodes.append(node)
-        self.executor.add_node(node)
-        self._instrument()
-        return node
+        try:
+            self.close()
+        finally:
+            rclpy.try_shutdown(context=self.context)
 
     def add_sim(self, namespace=None, **params):
         """Add the simulator that owns time; the benchmark, not a wall timer, steps it."""
         params.setdefault('publish_clock', True)
-        sim = UnicycleSim(context=self.context, **_node_kwargs(namespace, **params))
-        sim.clock_timer.cancel()
-        self.sim = sim
-        return self.add(sim)
+        return self.add_clock_owner(
+            UnicycleSim(context=self.context, **_node_kwargs(namespace, **params)))
 
     def add_node(self, node_class, namespace=None, **params):
         params.setdefault('use_sim_time', True)
@@ -309,112 +294,6 @@ class Lockstep:
         return self.add(ScriptNode(rate_hz, context=self.context,
                                    **_node_kwargs(use_sim_time=True)))
 
-    def remove(self, node):
-        topics = {pub.topic_name for pub in node.publishers}
-        self.executor.remove_node(node)
-        self.nodes.remove(node)
-        node.destroy_node()
-        self._instrument()
-
-        # The graph forgets a destroyed publisher a little later: wait, so that the next node
-        # on the topic is not taken for a second publisher.
-        def forgotten():
-            return all(self.sim.count_publishers(topic) <= sum(
-                pub.topic_name == topic for n in self.nodes for pub in n.publishers)
-                for topic in topics)
-        self.spin_until(forgotten, 10.0, poll=0.005)
-
-    def close(self):
-        try:
-            for node in reversed(self.nodes):
-                self.executor.remove_node(node)
-                node.destroy_node()
-            self.executor.shutdown()
-        finally:
-            rclpy.try_shutdown(context=self.context)
-
-    # Every publish adds the number of in-graph subscribers of its topic to what must arrive;
-    # every subscription callback counts one arrival.
-    def _instrument(self):
-        self._subscribers = {}
-        for node in self.nodes:
-            for sub in node.subscriptions:
-                topic = sub.topic_name
-                self._subscribers[topic] = self._subscribers.get(topic, 0) + 1
-                if not getattr(sub, '_bench_counted', False):
-                    sub.callback = self._counted_callback(sub.callback)
-                    sub._bench_counted = True
-            for pub in node.publishers:
-                if not getattr(pub, '_bench_counted', False):
-                    pub.publish = self._counted_publish(pub.publish, pub.topic_name)
-                    pub._bench_counted = True
-
-    def _counted_callback(self, callback):
-        def counted(msg):
-            self._handled += 1
-            callback(msg)
-        return counted
-
-    def _counted_publish(self, publish, topic):
-        def counted(msg):
-            self._sent += self._subscribers.get(topic, 0)
-            publish(msg)
-        return counted
-
-    def _settled(self, now_ns):
-        if self._handled != self._sent:
-            return False
-        for node in self.nodes:
-            if node is self.sim:
-                continue
-            if (node.get_parameter('use_sim_time').value
-                    and node.get_clock().now().nanoseconds != now_ns):
-                return False
-            for timer in node.timers:
-                if not timer.is_canceled():
-                    due = timer.time_until_next_call()
-                    if due is not None and due <= 0:
-                        return False
-        return True
-
-    def spin_until(self, predicate, timeout, poll=0.001):
-        deadline = time.monotonic() + timeout
-        while not predicate():
-            if time.monotonic() > deadline:
-                return False
-            self.executor.spin_once(timeout_sec=poll)
-        return True
-
-    def wait_for_discovery(self, timeout=10.0):
-        def matched():
-            return all(pub.get_subscription_count() >= self._subscribers.get(pub.topic_name, 0)
-                       for node in self.nodes for pub in node.publishers)
-        if not self.spin_until(matched, timeout, poll=0.01):
-            raise RuntimeError('in-process nodes did not discover each other')
-
-    @property
-    def now_ns(self):
-        return self.sim.now_ns()
-
-    @property
-    def step_ns(self):
-        return round(NS / self.sim.params.rate_hz)
-
-    def step(self, steps=1, timeout=10.0):
-        for _ in range(steps):
-            self.sim.step()
-            self.steps += 1
-            now_ns = self.sim.now_ns()
-            if not self.spin_until(lambda: self._settled(now_ns), timeout):
-                raise RuntimeError(f'graph did not settle at t={now_ns / NS:.3f} s')
-
-    def step_until(self, predicate, sim_timeout):
-        end_ns = self.now_ns + round(sim_timeout * NS)
-        while not predicate():
-            if self.now_ns >= end_ns:
-                raise RuntimeError('condition not reached in simulated time')
-            self.step()
-
     def step_to(self, t_ns):
         """Step until simulated time is t_ns (a multiple of the step, not in the past)."""
         if t_ns % self.step_ns or t_ns < self.now_ns:
@@ -423,7 +302,7 @@ class Lockstep:
 
     def pose(self):
         """Return the simulated robot's (x, y, yaw): what its odometry reports."""
-        m = self.sim.model
+        m = self.clock_owner.model
         return m.x, m.y, m.yaw
 
 
@@ -482,7 +361,7 @@ def rotate_project(mode, count, domain_id):
     """Rotate 90 deg clockwise at 60 deg/s with rotate_robot, from count start times."""
     goal = -math.radians(ROTATION.angle_deg)
     errors = []
-    with Lockstep(EventsExecutor, domain_id) as graph:
+    with Graph(EventsExecutor, domain_id) as graph:
         graph.add_sim()
         graph.wait_for_discovery()
         for start_ns in start_times(count, 0.02, 1.0):
@@ -510,7 +389,7 @@ def rotate_original(count, domain_id):
     errors = []
     # A 20 Hz simulator puts the start offsets (multiples of 50 ms) on its steps; it integrates
     # exactly between commands, so its rate does not change the pose.
-    with Lockstep(EventsExecutor, domain_id) as graph:
+    with Graph(EventsExecutor, domain_id) as graph:
         graph.add_sim(rate_hz=20.0)
         node = graph.add_script(rate_hz)
         graph.wait_for_discovery()
@@ -527,7 +406,7 @@ def rotate_original(count, domain_id):
 
 def play_reference(script_factory, rate_hz, sim_rate_hz, domain_id, sim_timeout):
     """Play a reference script once against the simulator; return start and end poses."""
-    with Lockstep(EventsExecutor, domain_id) as graph:
+    with Graph(EventsExecutor, domain_id) as graph:
         graph.add_sim(rate_hz=sim_rate_hz)
         node = graph.add_script(rate_hz)
         graph.wait_for_discovery()
@@ -546,7 +425,7 @@ def run_motion(executor_class, make_node, domain_id, sim_rate_hz=50.0, sim_timeo
     Returns the start and end poses and the simulated and wall seconds of the stepping (to the
     end of the motion and five steps of rest after it).
     """
-    with Lockstep(executor_class, domain_id) as graph:
+    with Graph(executor_class, domain_id) as graph:
         graph.add_sim(rate_hz=sim_rate_hz)
         node = make_node(graph)
         graph.wait_for_discovery()
@@ -786,7 +665,7 @@ def row_rtf_in_process(runs):
 
 def scaling_one_process(robots, window_s, motion, domain_id):
     """Return the real-time factor of `robots` simulator+motion pairs in one executor."""
-    with Lockstep(EventsExecutor, domain_id) as graph:
+    with Graph(EventsExecutor, domain_id) as graph:
         graph.add_sim(namespace='/robot0')
         for k in range(1, robots):
             graph.add_node(UnicycleSim, namespace=f'/robot{k}')
