@@ -38,6 +38,7 @@ from rclpy.clock import ClockType
 from rclpy.clock import JumpThreshold
 from rclpy.duration import Duration
 from rclpy.node import Node
+from sim_diffdrive.participant import take_part
 
 _NS = 1_000_000_000
 # How long to wait for the odometry that shows where the robot came to rest.
@@ -154,6 +155,12 @@ class MotionNode(Node):
             JumpThreshold(min_forward=None, min_backward=Duration(nanoseconds=-1),
                           on_clock_change=False),
             post_callback=self._on_time_jump)
+        # On sim time: take part in the simulator's lockstep, and act at each tick on the
+        # odometry measured before it, so that the decision never depends on whether this
+        # step's odometry or clock crossed the graph first (runs are bit-identical).
+        self.sim_time = self.get_parameter('use_sim_time').value
+        self._early_odoms = []
+        self.lockstep = take_part(self) if self.sim_time else None
 
     # -- lifecycle ---------------------------------------------------------------------------
 
@@ -178,6 +185,8 @@ class MotionNode(Node):
         """Leave the robot stopped, whatever ended the run."""
         if self.context.ok():
             self.stop_robot()
+            if self.lockstep is not None:
+                self.lockstep.leave()
             # Fast DDS sends within publish(); its acknowledgement waits for a heartbeat that
             # can be seconds away, so only a short wait covers a resend on a lossy link.
             self.cmd_pub.wait_for_all_acked(Duration(seconds=0.2))
@@ -208,6 +217,18 @@ class MotionNode(Node):
 
     def _on_odom(self, msg):
         odom = OdomPose(msg)
+        self._odom_wall = time.monotonic()
+        if self.sim_time and odom.stamp_ns >= self.now_ns():
+            self._early_odoms.append(odom)
+            return
+        self._use_odom(odom)
+
+    def _take_early_odoms(self, now_ns):
+        early = self._early_odoms
+        while early and early[0].stamp_ns < now_ns and self.state != 'finished':
+            self._use_odom(early.pop(0))
+
+    def _use_odom(self, odom):
         if self.needs_odom and self.state == 'running' and self.odom is not None:
             fault = self._odom_fault(self.odom, odom)
             if fault:
@@ -215,12 +236,12 @@ class MotionNode(Node):
                                          'odometry that cannot be trusted (simulator restarted?)')
                 return
         self.odom = odom
-        self._odom_wall = time.monotonic()
         self.turned.update(odom.yaw)
         if self.state in ('running', 'settling'):
             self.trajectory.append((odom.x, odom.y, odom.yaw))
 
     def _on_time_jump(self, jump):
+        self._early_odoms.clear()
         if self.needs_odom and self.state == 'running':
             back_s = -jump.delta.nanoseconds / _NS
             self.finish(EXIT_FAILED, f'Simulated time went back {back_s:.3f} s; stopped the '
@@ -248,6 +269,9 @@ class MotionNode(Node):
         """Return what the motion still waits for, or '' when it can start."""
         if self.cmd_pub.get_subscription_count() == 0:
             return f'a subscriber on {self.cmd_pub.topic_name}'
+        lockstep = self.lockstep
+        if lockstep is not None and not lockstep.joined and lockstep.owner_present:
+            return 'the simulator to take this node into its lockstep'
         if self.odom is None and (self.needs_odom or self.count_publishers(self._odom_topic)):
             # Open loop needs no odometry, but where there is some, the closing line uses it.
             return 'odometry on ' + self._odom_topic
@@ -288,6 +312,7 @@ class MotionNode(Node):
         now_ns = self.now_ns()
         if now_ns == 0:
             return
+        self._take_early_odoms(now_ns)
         if self.state == 'waiting':
             if self._missing():
                 return

@@ -42,7 +42,17 @@ from rclpy.qos import QoSProfile
 from rclpy.qos import ReliabilityPolicy
 from rclpy.time import Time
 from rosgraph_msgs.msg import Clock as ClockMsg
+from sim_diffdrive.handshake import Answer
+from sim_diffdrive.handshake import answer_topic
+from sim_diffdrive.handshake import encode_members
+from sim_diffdrive.handshake import members_topic
+from sim_diffdrive.handshake import StepLedger
 from sim_diffdrive.kinematics import UnicycleModel
+from sim_diffdrive.participant import ANSWER_QOS
+from sim_diffdrive.participant import MEMBERS_QOS
+from sim_diffdrive.participant import MessageCounter
+from sim_diffdrive.participant import take_part
+from std_msgs.msg import String
 from std_srvs.srv import Empty
 
 _NS = 1_000_000_000
@@ -54,6 +64,10 @@ _COMMAND_LIMIT = 1e4
 _PACING_MARGIN = 2.0
 _REACTION_DECAY = 0.98
 _POSITION_LIMIT = 1e6
+# In lockstep the clock timer only paces and watches for laggards (answers drive the steps),
+# so it need not fire more often than this [s]; without members it catches up in bursts.
+_LOCKSTEP_TICK_S = 0.0005
+_MAX_CATCH_UP = 20
 
 PARAMETERS = (
     Spec('rate_hz', 50.0, 'Odometry publish rate [Hz]; with publish_clock also the clock step.',
@@ -88,6 +102,12 @@ PARAMETERS = (
     Spec('real_time_factor', 1.0,
          'With publish_clock: simulated seconds per wall second (e.g. 20.0).',
          low=0.0, high=10000.0, low_open=True),
+    Spec('lockstep', True,
+         'With publish_clock: step in lockstep with the nodes that take part (every motion on '
+         'sim time): no step before each has answered the last one. false: a free clock.'),
+    Spec('lockstep_timeout', 2.0,
+         'With lockstep: wall seconds to wait for one participant before warning and going '
+         'on without it.', low=0.0, high=3600.0, low_open=True),
     Spec('stamped', False, 'Subscribe to geometry_msgs/TwistStamped instead of Twist.'),
     Spec('max_command_age', 0.5,
          'With stamped: refuse a command stamped further than this from now [s]; 0 = accept all.',
@@ -147,6 +167,8 @@ class UnicycleSim(Node):
         self._cmd_topic = sub.topic_name
         self.create_service(Empty, '~/reset', self._on_reset)
 
+        self._ledger = None
+        self.lockstep = None
         if p.publish_clock:
             self._clock_pub = self.create_publisher(
                 ClockMsg, '/clock', QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE))
@@ -156,19 +178,121 @@ class UnicycleSim(Node):
             self._answered = True
             # Pacing never makes simulated time slower than real time.
             self._max_reaction_s = self._step_ns / _NS / _PACING_MARGIN
+            self._budget_s = self._step_ns / _NS / p.real_time_factor
+            period_s = self._budget_s
+            if p.lockstep:
+                self._start_lockstep()
+                period_s = max(period_s, _LOCKSTEP_TICK_S)
             self.clock_timer = self.create_timer(
-                self._step_ns / _NS / p.real_time_factor, self._on_clock_timer,
-                clock=Clock(clock_type=ClockType.STEADY_TIME))
+                period_s, self._on_clock_timer, clock=Clock(clock_type=ClockType.STEADY_TIME))
             self._publish_clock()
         else:
             self._clock_pub = None
             self.clock_timer = None
             self.create_timer(self._step_ns / _NS, self._on_odom_timer)
+            if self.get_parameter('use_sim_time').value:
+                # Another simulator owns the clock: take part, so it waits for this robot.
+                self.lockstep = take_part(self)
         self.get_logger().info(
             f'Unicycle at ({p.initial_x:.3f}, {p.initial_y:.3f}, {p.initial_yaw:.3f} rad), '
             f'odom at {p.rate_hz:g} Hz, cmd_vel timeout {p.cmd_vel_timeout:g} s'
-            + (f', publishing /clock at {p.real_time_factor:g}x real time'
+            + (f', publishing /clock at up to {p.real_time_factor:g}x real time'
+               + (' in lockstep' if p.lockstep else ' (free clock)')
                if p.publish_clock else ''))
+
+    # -- lockstep (see handshake.py) -----------------------------------------------------------
+
+    def _start_lockstep(self):
+        self._ledger = StepLedger()
+        self._owner_id = self.get_fully_qualified_name() + '#owner'
+        clock_topic = self._clock_pub.topic_name
+        self._answer_topic = answer_topic(clock_topic)
+        self._members_pub = self.create_publisher(String, members_topic(clock_topic),
+                                                  MEMBERS_QOS)
+        self.create_subscription(String, self._answer_topic, self._on_answer, ANSWER_QOS)
+        # Counts this node's own traffic (cmd_vel heard, odom sent) like a participant's.
+        self._own_counter = MessageCounter(self, clock_topic, self._try_step)
+        self._announced = None
+        self._publish_members()
+
+    @property
+    def participants(self):
+        """Return the fully qualified names of the nodes that take part in lockstep."""
+        if self._ledger is None:
+            return []
+        return sorted(m.answer.node for pid, m in self._ledger.members.items()
+                      if pid != self._owner_id)
+
+    def _own_answer(self):
+        counter = self._own_counter
+        self._ledger.receive(Answer(self._owner_id, self.get_fully_qualified_name(),
+                                    self._sim_ns, counter.sent, counter.heard, False,
+                                    counter.sent_stamp, counter.heard_stamp), self._sim_ns)
+
+    def _on_answer(self, msg):
+        try:
+            answer = Answer.decode(msg.data)
+        except ValueError as error:
+            self.get_logger().warning(f'Ignoring a message on {self._answer_topic}: {error}',
+                                      throttle_duration_sec=5.0)
+            return
+        change = self._ledger.receive(answer, self._sim_ns)
+        if change == 'left':
+            self.get_logger().info(f'Lockstep: {answer.node} left at {self._sim_ns / _NS:.3f} s')
+        self._try_step()
+
+    def _publish_members(self):
+        """Tell the participants who is counted, when that changed."""
+        members = self._ledger.synced() - {self._owner_id}
+        if members == self._announced:
+            return
+        for pid in members - (self._announced or set()):
+            self.get_logger().info(
+                f'Lockstep: {self._ledger.members[pid].answer.node} takes part from '
+                f'{self._sim_ns / _NS:.3f} s on; {len(members)} participant(s)')
+        self._announced = members
+        msg = String()
+        msg.data = encode_members(self.get_fully_qualified_name(), self._sim_ns, members)
+        self._members_pub.publish(msg)
+
+    def _try_step(self):
+        """Step if the last step is settled and real_time_factor allows it (lockstep only)."""
+        if self.clock_timer is None or self.clock_timer.is_canceled():
+            return  # stepped from outside (the in-process harness)
+        self._own_answer()
+        ledger = self._ledger
+        waited = time.monotonic() - self._clock_wall
+        if len(ledger.members) <= 1:
+            self._publish_members()
+            # Freewheel until the first answer (as PX4's lockstep does).
+            steps = min(int(waited / self._budget_s), _MAX_CATCH_UP)
+            for _ in range(steps):
+                self.step()
+            return
+        waiting = ledger.waiting_for(self._sim_ns)
+        self._publish_members()
+        if waiting:
+            if waited <= self.params.lockstep_timeout:
+                return
+            self._give_up(waiting)
+        if waited >= self._budget_s:
+            self.step()
+
+    def _give_up(self, waiting):
+        """Go on without what did not come within lockstep_timeout; say who it was."""
+        ledger = self._ledger
+        for reason in waiting:
+            pid, topic, _ = reason
+            if pid not in ledger.members:
+                continue  # dropped for another reason already
+            self.get_logger().warning(
+                f'Lockstep: {ledger.describe(reason, self._sim_ns)} within '
+                f'{self.params.lockstep_timeout:g} s; going on without it')
+            if topic is None:
+                ledger.drop(pid)
+            else:
+                ledger.forgive(pid, topic)
+        self._publish_members()
 
     # -- time -------------------------------------------------------------------------------
 
@@ -202,6 +326,9 @@ class UnicycleSim(Node):
         return bool(m.target_linear or m.target_angular or m.linear or m.angular)
 
     def _on_clock_timer(self):
+        if self._ledger is not None:
+            self._try_step()
+            return
         # real_time_factor is an upper bound: a step waits until the graph has had a few times
         # its recent reaction time to answer the previous one, so that a command lands on the
         # step it was sent for even when the machine is loaded.
@@ -211,6 +338,8 @@ class UnicycleSim(Node):
 
     def step(self):
         """Advance simulated time by one step and publish /clock and odometry."""
+        if self._ledger is not None:
+            self._ledger.next_step()
         self._sim_ns += self._step_ns
         self._advance_to(self._sim_ns)
         self._publish_clock()

@@ -78,6 +78,8 @@ class Graph(Lockstep):
         """
         params.setdefault('publish_clock', True)
         params.setdefault('real_time_factor', TEST_REAL_TIME_FACTOR)
+        # The test steps the clock itself (see sim_diffdrive.lockstep), not the handshake.
+        params.setdefault('lockstep', False)
         sim = UnicycleSim(context=self.context, parameter_overrides=[
             Parameter(name, value=value) for name, value in params.items()])
         return self.add_clock_owner(sim) if lockstep else self.add(sim)

@@ -283,6 +283,7 @@ class Graph(Lockstep):
     def add_sim(self, namespace=None, **params):
         """Add the simulator that owns time; the benchmark, not a wall timer, steps it."""
         params.setdefault('publish_clock', True)
+        params.setdefault('lockstep', False)  # stepped by the in-process Lockstep instead
         return self.add_clock_owner(
             UnicycleSim(context=self.context, **_node_kwargs(namespace, **params)))
 

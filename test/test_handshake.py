@@ -1,0 +1,188 @@
+# Copyright 2026 motion_challenges contributors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""The lockstep bookkeeping without ROS: who is waited for, and for what."""
+
+import pytest
+from sim_diffdrive.handshake import Answer
+from sim_diffdrive.handshake import decode_members
+from sim_diffdrive.handshake import encode_members
+from sim_diffdrive.handshake import StepLedger
+
+MS = 1_000_000
+ODOM = '/odom'
+CMD = '/cmd_vel'
+
+
+class Owner:
+    """The simulator's own counts, as it feeds them to its ledger."""
+
+    def __init__(self, ledger):
+        self.ledger = ledger
+        self.now = 0
+        self.odom_sent = 0
+        self.cmd_heard = 0
+        self.report()
+
+    def report(self):
+        self.ledger.receive(Answer('sim', '/unicycle_sim', self.now, {ODOM: self.odom_sent},
+                                   {CMD: self.cmd_heard}, sent_stamp={ODOM: self.now}),
+                            self.now)
+
+    def step(self):
+        self.ledger.next_step()
+        self.now += 20 * MS
+        self.odom_sent += 1
+        self.report()
+
+    def hear_command(self):
+        self.cmd_heard += 1
+        self.report()
+
+
+def motion(step, cmds, odoms, odom_stamp, pid='m'):
+    return Answer(pid, '/motion', step, {CMD: cmds}, {ODOM: odoms},
+                  heard_stamp={ODOM: odom_stamp})
+
+
+@pytest.fixture
+def joined():
+    """An owner at 20 ms with one motion that has joined and caught up."""
+    ledger = StepLedger()
+    owner = Owner(ledger)
+    owner.step()
+    ledger.receive(motion(owner.now, 0, 1, owner.now), owner.now)
+    assert ledger.waiting_for(owner.now) == []
+    assert ledger.synced() == {'sim', 'm'}
+    return ledger, owner
+
+
+def test_answer_round_trip():
+    answer = Answer('a#1', '/ns/node', 123, {CMD: 4}, {ODOM: 7}, True, {}, {ODOM: 100})
+    assert Answer.decode(answer.encode()) == answer
+
+
+@pytest.mark.parametrize('text', ['', 'hello', '[]', '{"id": "x"}', '{"id":1,"node":2,'
+                                  '"step_ns":"soon"}'])
+def test_garbage_is_not_an_answer(text):
+    with pytest.raises(ValueError):
+        Answer.decode(text)
+
+
+def test_members_round_trip():
+    owner, members = decode_members(encode_members('/sim', 5, {'b', 'a'}))
+    assert (owner, members) == ('/sim', {'a', 'b'})
+
+
+def test_alone_the_owner_never_waits():
+    ledger = StepLedger()
+    owner = Owner(ledger)
+    for _ in range(3):
+        owner.step()
+        assert ledger.waiting_for(owner.now) == []
+
+
+def test_a_step_waits_for_the_answer_then_for_the_command_it_covers(joined):
+    ledger, owner = joined
+    owner.step()
+    assert ('m', None, 0) in ledger.waiting_for(owner.now)
+    # The answer overtook its command: it says one was sent, the owner has not heard it.
+    ledger.receive(motion(owner.now, 1, 2, owner.now), owner.now)
+    assert ledger.waiting_for(owner.now) == [('sim', CMD, 1)]
+    owner.hear_command()
+    assert ledger.waiting_for(owner.now) == []
+
+
+def test_a_step_waits_until_the_member_heard_the_odometry(joined):
+    ledger, owner = joined
+    owner.step()
+    ledger.receive(motion(owner.now, 0, 1, owner.now - 20 * MS), owner.now)
+    assert {reason[:2] for reason in ledger.waiting_for(owner.now)} == {('m', ODOM)}
+    ledger.receive(motion(owner.now, 0, 2, owner.now), owner.now)
+    assert ledger.waiting_for(owner.now) == []
+
+
+def test_a_non_member_publisher_never_stalls_and_its_surplus_is_forgotten(joined):
+    ledger, owner = joined
+    for _ in range(5):  # a teleop's commands, heard by the simulator only
+        owner.hear_command()
+    owner.step()
+    ledger.receive(motion(owner.now, 0, 2, owner.now), owner.now)
+    assert ledger.waiting_for(owner.now) == []
+    owner.step()
+    # The surplus from the teleop does not cover the member's next command.
+    ledger.receive(motion(owner.now, 1, 3, owner.now), owner.now)
+    assert ledger.waiting_for(owner.now) == [('sim', CMD, 1)]
+
+
+def test_a_joining_member_holds_the_clock_until_it_caught_up():
+    ledger = StepLedger()
+    owner = Owner(ledger)
+    for _ in range(10):
+        owner.step()  # freewheeling: ten odometry messages before the motion answers
+    # It answers an older step and has heard only the first few messages.
+    assert ledger.receive(motion(owner.now - 40 * MS, 0, 3, 60 * MS), owner.now) == 'joined'
+    assert ledger.waiting_for(owner.now)
+    assert ledger.synced() == {'sim'}
+    ledger.receive(motion(owner.now, 0, 9, owner.now - 20 * MS), owner.now)
+    assert ledger.waiting_for(owner.now)
+    ledger.receive(motion(owner.now, 0, 10, owner.now), owner.now)
+    assert ledger.waiting_for(owner.now) == []
+    assert ledger.synced() == {'sim', 'm'}
+    # From here on it is counted exactly.
+    owner.step()
+    ledger.receive(motion(owner.now, 0, 10, owner.now - 20 * MS), owner.now)
+    assert ledger.waiting_for(owner.now)
+    ledger.receive(motion(owner.now, 0, 11, owner.now), owner.now)
+    assert ledger.waiting_for(owner.now) == []
+
+
+def test_what_a_member_sent_before_joining_is_not_owed():
+    ledger = StepLedger()
+    owner = Owner(ledger)
+    owner.step()
+    ledger.receive(motion(owner.now, 5, 1, owner.now), owner.now)  # 5 commands, maybe lost
+    assert ledger.waiting_for(owner.now) == []
+    owner.step()
+    ledger.receive(motion(owner.now, 6, 2, owner.now), owner.now)
+    assert ledger.waiting_for(owner.now) == [('sim', CMD, 1)]
+
+
+def test_leaving_and_dropping_release_the_clock(joined):
+    ledger, owner = joined
+    owner.step()
+    assert ledger.waiting_for(owner.now)
+    assert ledger.receive(Answer('m', '/motion', 0, leaving=True), owner.now) == 'left'
+    assert ledger.waiting_for(owner.now) == []
+    ledger.receive(motion(owner.now, 0, 2, owner.now, pid='late'), owner.now)
+    owner.step()
+    waiting = ledger.waiting_for(owner.now)
+    assert waiting == [('late', None, 0)]
+    assert 'did not answer' in ledger.describe(waiting[0], owner.now)
+    ledger.drop('late')
+    assert ledger.waiting_for(owner.now) == []
+
+
+def test_a_lost_message_is_forgiven_once(joined):
+    ledger, owner = joined
+    owner.step()
+    ledger.receive(motion(owner.now, 1, 2, owner.now), owner.now)
+    waiting = ledger.waiting_for(owner.now)
+    assert waiting == [('sim', CMD, 1)]
+    assert 'has not handled 1 message(s) on /cmd_vel' in ledger.describe(waiting[0], owner.now)
+    ledger.forgive('sim', CMD)
+    assert ledger.waiting_for(owner.now) == []
+    owner.step()
+    ledger.receive(motion(owner.now, 2, 3, owner.now), owner.now)
+    assert ledger.waiting_for(owner.now) == [('sim', CMD, 1)]

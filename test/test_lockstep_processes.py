@@ -1,0 +1,180 @@
+# Copyright 2026 motion_challenges contributors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Lockstep across processes: the real executables on sim time, on a machine kept busy.
+
+The simulator owns /clock with a high real_time_factor and steps in lockstep (its default)
+with every motion; busy-loop processes load both cores, and an extra subscriber process
+listens to cmd_vel and odom without taking part.  Every motion must end at its analytic pose
+as exactly as in one process, and two runs must end bit-identical.
+"""
+
+import math
+import os
+import shutil
+import signal
+import subprocess
+import sys
+
+from conftest import angle_error
+from conftest import pose_of
+from conftest import stamp_s
+from geometry_msgs.msg import Twist
+import pytest
+from rclpy.clock import Clock
+from rclpy.clock import ClockType
+from std_srvs.srv import Empty
+
+FACTOR = 1000.0  # an upper bound: the handshake sets the pace
+BUSY_LOOP = 'import time\nend = time.monotonic() + 120\nwhile time.monotonic() < end: pass\n'
+EXTRA_SUBSCRIBER = '''
+import time, rclpy
+from geometry_msgs.msg import Twist
+from nav_msgs.msg import Odometry
+rclpy.init()
+node = rclpy.create_node('listener')
+slow = lambda msg: time.sleep(0.002)  # a slow logger
+node.create_subscription(Twist, 'cmd_vel', slow, 1000)
+node.create_subscription(Odometry, 'odom', slow, 1000)
+rclpy.spin(node)
+'''
+CLOSED_LOOP = ('odom_out_and_back', 'goal_distance:=0.3', 'pause:=0.1', 'angular_speed:=2.0')
+OPEN_LOOP = ('rotate_robot', 'angular_speed_deg:=60.0', 'angle_deg:=90.0', 'clockwise:=true')
+
+
+def start(executable, *params, python=False):
+    if python:
+        args = [sys.executable, '-c', executable]
+    else:
+        path = shutil.which(executable)
+        assert path, f'{executable} is not on PATH; install the package (make venv)'
+        args = [path, '--ros-args', *[arg for p in params for arg in ('-p', p)]]
+    return subprocess.Popen(args, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT, text=True, env=dict(os.environ))
+
+
+def stop(process, sig=signal.SIGINT):
+    if process.poll() is None:
+        process.send_signal(sig)
+        try:
+            process.wait(5.0)
+        except subprocess.TimeoutExpired:
+            process.kill()
+            process.wait()
+    return process.stdout.read()
+
+
+@pytest.fixture
+def busy_machine():
+    """Two busy-loop processes (one per core) and an extra, slow cmd_vel/odom subscriber."""
+    processes = [start(BUSY_LOOP, python=True) for _ in range(2)]
+    processes.append(start(EXTRA_SUBSCRIBER, python=True))
+    try:
+        yield
+    finally:
+        for process in processes:
+            stop(process, signal.SIGKILL)
+
+
+@pytest.fixture
+def simulator(graph):
+    """Start unicycle_sim owning time; yield (process, probe on its odometry, reset())."""
+    sim = start('unicycle_sim', 'publish_clock:=true', f'real_time_factor:={FACTOR}',
+                'lockstep_timeout:=0.5')
+    probe = graph.probe()
+    reset = probe.create_client(Empty, '/unicycle_sim/reset')
+
+    def do_reset():
+        assert reset.wait_for_service(10.0)
+        future = reset.call_async(Empty.Request())
+        assert graph.spin_until(future.done, 10.0)
+
+    try:
+        assert graph.spin_until(lambda: probe.odom is not None, 20.0), 'no odometry from sim'
+        yield sim, probe, do_reset
+    finally:
+        stop(sim)
+
+
+def run_motion(graph, probe, executable, *params):
+    """Run a motion on sim time to its end; return (exit code, output, final odometry pose)."""
+    motion = start(executable, 'use_sim_time:=true', *params)
+    assert graph.spin_until(lambda: motion.poll() is not None, 60.0), 'motion did not finish'
+    output = motion.stdout.read()
+    # The stop reached the simulator before the motion exited; wait for odometry after it.
+    stamp = stamp_s(probe.odom)
+    assert graph.spin_until(lambda: stamp_s(probe.odom) > stamp + 0.1, 10.0)
+    return motion.returncode, output, probe.odom
+
+
+def test_motions_end_exact_and_bit_identical_on_a_busy_machine(graph, busy_machine, simulator):
+    _, probe, reset = simulator
+    ends = {}
+    for run in range(2):
+        for executable, *params in (CLOSED_LOOP, OPEN_LOOP):
+            reset()
+            code, output, odom = run_motion(graph, probe, executable, *params)
+            assert code == 0, output
+            assert 'Taking part in lockstep' in output, output
+            ends.setdefault(executable, []).append(odom.pose.pose)
+            x, y, yaw = pose_of(odom)
+            if executable == 'odom_out_and_back':
+                assert math.hypot(x, y) < 1e-9 and angle_error(yaw, 0.0) < 1e-9, output
+            else:
+                assert angle_error(yaw, math.radians(-90.0)) < 1e-12, output
+            assert odom.twist.twist.linear.x == 0.0 and odom.twist.twist.angular.z == 0.0
+    for executable, (first, second) in ends.items():
+        assert first == second, f'{executable}: two runs differ: {first} vs {second}'
+
+
+def test_a_killed_participant_is_left_behind_and_a_late_one_is_waited_for(graph, simulator):
+    sim, probe, _ = simulator
+    circle = start('circle_back_and_forth', 'use_sim_time:=true')
+    try:
+        assert graph.spin_until(lambda: probe.odom.twist.twist.linear.x == 0.5, 30.0)
+        circle.send_signal(signal.SIGKILL)
+        circle.wait()
+        killed_at = stamp_s(probe.odom)
+        # The clock goes on without it, and the cmd_vel timeout stops the robot.
+        assert graph.spin_until(lambda: stamp_s(probe.odom) > killed_at + 2.0, 20.0)
+        assert probe.odom.twist.twist.linear.x == 0.0
+    finally:
+        stop(circle, signal.SIGKILL)
+    _, _, start_yaw = pose_of(probe.odom)
+    code, output, odom = run_motion(graph, probe, *OPEN_LOOP)
+    assert code == 0, output
+    assert angle_error(pose_of(odom)[2], start_yaw - math.radians(90.0)) < 1e-12, output
+    sim_output = stop(sim)
+    assert 'Lockstep: /circle_back_and_forth did not answer the clock step' in sim_output
+    assert 'going on without it' in sim_output
+    assert 'Lockstep: /rotate_robot takes part from' in sim_output
+
+
+def test_a_foreign_publisher_does_not_stall_the_clock(graph, simulator):
+    sim, probe, _ = simulator
+    # A teleop that does not take part, publishing on the wall clock.
+    teleop = probe.create_publisher(Twist, 'cmd_vel', 10)
+    flood = probe.create_timer(0.002, lambda: teleop.publish(Twist()),
+                               clock=Clock(clock_type=ClockType.STEADY_TIME))
+    try:
+        motion = start('timed_out_and_back', 'use_sim_time:=true', 'goal_distance:=0.2',
+                       'pause:=0.1')
+        assert graph.spin_until(lambda: motion.poll() is not None, 60.0), 'clock stalled'
+        output = motion.stdout.read()
+        assert motion.returncode == 0, output
+        assert 'Done in' in output
+    finally:
+        flood.cancel()
+    assert 'did not answer' not in stop(sim)
