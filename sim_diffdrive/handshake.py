@@ -54,6 +54,8 @@ def ignored_topics(clock_topic):
     """Return the topics that are the handshake itself or housekeeping, never counted."""
     return HOUSEKEEPING_TOPICS | {clock_topic, answer_topic(clock_topic),
                                   members_topic(clock_topic)}
+
+
 _NS = 1_000_000_000
 
 

@@ -161,7 +161,7 @@ class Participant:
         return True
 
     def answer(self, leaving=False):
-        """Publish this node's answer (only when it says something new)."""
+        """Publish this node's answer, unless it says nothing new."""
         counter = self.counter
         answer = Answer(self.id, self.node.get_fully_qualified_name(), counter.clock_ns or 0,
                         dict(counter.sent), dict(counter.heard), leaving,

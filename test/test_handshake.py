@@ -58,7 +58,7 @@ def motion(step, cmds, odoms, odom_stamp, pid='m'):
 
 @pytest.fixture
 def joined():
-    """An owner at 20 ms with one motion that has joined and caught up."""
+    """Return a ledger and an owner at 20 ms with one motion that joined and caught up."""
     ledger = StepLedger()
     owner = Owner(ledger)
     owner.step()

@@ -39,7 +39,7 @@ from std_srvs.srv import Empty
 
 FACTOR = 1000.0  # an upper bound: the handshake sets the pace
 BUSY_LOOP = 'import time\nend = time.monotonic() + 120\nwhile time.monotonic() < end: pass\n'
-EXTRA_SUBSCRIBER = '''
+EXTRA_SUBSCRIBER = """
 import time, rclpy
 from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
@@ -49,7 +49,7 @@ slow = lambda msg: time.sleep(0.002)  # a slow logger
 node.create_subscription(Twist, 'cmd_vel', slow, 1000)
 node.create_subscription(Odometry, 'odom', slow, 1000)
 rclpy.spin(node)
-'''
+"""
 CLOSED_LOOP = ('odom_out_and_back', 'goal_distance:=0.3', 'pause:=0.1', 'angular_speed:=2.0')
 OPEN_LOOP = ('rotate_robot', 'angular_speed_deg:=60.0', 'angle_deg:=90.0', 'clockwise:=true')
 

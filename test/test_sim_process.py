@@ -117,7 +117,7 @@ def test_turns_on_command_and_exits_cleanly_on_sigint(graph, start_sim):
     assert sim.stop(signal.SIGINT) == 0
     output = sim.output()
     assert 'Traceback' not in output
-    assert 'publishing /clock at 5x real time' in output
+    assert 'publishing /clock at up to 5x real time in lockstep' in output
 
 
 def test_exits_cleanly_on_sigterm(graph, start_sim):
