@@ -210,24 +210,15 @@ class UnicycleSim(Node):
         self._members_pub = self.create_publisher(String, members_topic(clock_topic),
                                                   MEMBERS_QOS)
         self.create_subscription(String, self._answer_topic, self._on_answer, ANSWER_QOS)
-        # Counts this node's own traffic (cmd_vel heard, odom sent) like a participant's.
-        self._own_counter = MessageCounter(self, clock_topic, self._try_step)
+        # This node's own traffic (cmd_vel heard, odom sent) is counted like a participant's;
+        # its answer holds the counter's live dicts, so only its step changes (in step()).
+        counter = MessageCounter(self, clock_topic, self._try_step)
+        self._own_answer = Answer(self._owner_id, self.get_fully_qualified_name(), self._sim_ns,
+                                  counter.sent, counter.heard, False, counter.sent_stamp,
+                                  counter.heard_stamp)
+        self._ledger.receive(self._own_answer, self._sim_ns)
         self._announced = None
         self._publish_members()
-
-    @property
-    def participants(self):
-        """Return the fully qualified names of the nodes that take part in lockstep."""
-        if self._ledger is None:
-            return []
-        return sorted(m.answer.node for pid, m in self._ledger.members.items()
-                      if pid != self._owner_id)
-
-    def _own_answer(self):
-        counter = self._own_counter
-        self._ledger.receive(Answer(self._owner_id, self.get_fully_qualified_name(),
-                                    self._sim_ns, counter.sent, counter.heard, False,
-                                    counter.sent_stamp, counter.heard_stamp), self._sim_ns)
 
     def _on_answer(self, msg):
         try:
@@ -259,7 +250,6 @@ class UnicycleSim(Node):
         """Step if the last step is settled and real_time_factor allows it (lockstep only)."""
         if self.clock_timer is None or self.clock_timer.is_canceled():
             return  # stepped from outside (the in-process harness)
-        self._own_answer()
         ledger = self._ledger
         waited = time.monotonic() - self._clock_wall
         if len(ledger.members) <= 1:
@@ -340,6 +330,7 @@ class UnicycleSim(Node):
         """Advance simulated time by one step and publish /clock and odometry."""
         if self._ledger is not None:
             self._ledger.next_step()
+            self._own_answer.step_ns = self._sim_ns + self._step_ns
         self._sim_ns += self._step_ns
         self._advance_to(self._sim_ns)
         self._publish_clock()

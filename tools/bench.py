@@ -855,8 +855,8 @@ def run_process_motion(children, session, observer, scenario, rtf):
     """
     Run one motion executable against a fresh simulator that owns the clock (rtf).
 
-    Fresh, as a user would start them: the simulator paces its clock by what it has seen of
-    the graph, so one that served an earlier motion would start the next at another pace.
+    Fresh, as a user would start them, so each run starts from the simulator's initial pose
+    and clock.
     Returns the resting pose, its error from the goal, the movement's sim and wall seconds,
     and why the run failed (None when the motion finished with exit code 0).
     """
