@@ -22,11 +22,7 @@ as exactly as in one process, and two runs must end bit-identical.
 """
 
 import math
-import os
-import shutil
 import signal
-import subprocess
-import sys
 
 from conftest import angle_error
 from conftest import pose_of
@@ -35,6 +31,9 @@ from geometry_msgs.msg import Twist
 import pytest
 from rclpy.clock import Clock
 from rclpy.clock import ClockType
+from sim_diffdrive import processes
+from sim_diffdrive.processes import start_python
+from sim_diffdrive.processes import stop
 from std_srvs.srv import Empty
 
 FACTOR = 1000.0  # an upper bound: the handshake sets the pace
@@ -54,33 +53,15 @@ CLOSED_LOOP = ('odom_out_and_back', 'goal_distance:=0.3', 'pause:=0.1', 'angular
 OPEN_LOOP = ('rotate_robot', 'angular_speed_deg:=60.0', 'angle_deg:=90.0', 'clockwise:=true')
 
 
-def start(executable, *params, python=False):
-    if python:
-        args = [sys.executable, '-c', executable]
-    else:
-        path = shutil.which(executable)
-        assert path, f'{executable} is not on PATH; install the package (make venv)'
-        args = [path, '--ros-args', *[arg for p in params for arg in ('-p', p)]]
-    return subprocess.Popen(args, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
-                            stderr=subprocess.STDOUT, text=True, env=dict(os.environ))
-
-
-def stop(process, sig=signal.SIGINT):
-    if process.poll() is None:
-        process.send_signal(sig)
-        try:
-            process.wait(5.0)
-        except subprocess.TimeoutExpired:
-            process.kill()
-            process.wait()
-    return process.stdout.read()
+def start(executable, *params):
+    return processes.start(executable, *processes.ros_params(*params))
 
 
 @pytest.fixture
 def busy_machine():
     """Two busy-loop processes (one per core) and an extra, slow cmd_vel/odom subscriber."""
-    processes = [start(BUSY_LOOP, python=True) for _ in range(2)]
-    processes.append(start(EXTRA_SUBSCRIBER, python=True))
+    processes = [start_python(BUSY_LOOP) for _ in range(2)]
+    processes.append(start_python(EXTRA_SUBSCRIBER))
     try:
         yield
     finally:

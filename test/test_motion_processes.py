@@ -21,8 +21,6 @@ test_motions_graph.py.  Here a result is accepted within one simulator step of m
 """
 
 import math
-import os
-import shutil
 import signal
 import subprocess
 import time
@@ -30,30 +28,14 @@ import time
 from conftest import angle_error
 from conftest import pose_of
 import pytest
+from sim_diffdrive.processes import start
+from sim_diffdrive.processes import stop
 
 RATE_HZ = 50.0
 REAL_TIME_FACTOR = 4.0
 ROTATE_ARGS = ['--ros-args', '-p', 'use_sim_time:=true']
 # One simulator step of turning at 60 deg/s, plus rounding.
 ONE_STEP_AT_60 = math.radians(60.0 / RATE_HZ) * 1.01
-
-
-def start(executable, *args, stdin=subprocess.DEVNULL):
-    path = shutil.which(executable)
-    assert path, f'{executable} is not on PATH; install the package (make venv)'
-    return subprocess.Popen([path, *args], stdin=stdin, stdout=subprocess.PIPE,
-                            stderr=subprocess.STDOUT, text=True, env=dict(os.environ))
-
-
-def stop(process):
-    if process.poll() is None:
-        process.send_signal(signal.SIGINT)
-        try:
-            process.wait(5.0)
-        except subprocess.TimeoutExpired:
-            process.kill()
-            process.wait()
-    return process.stdout.read()
 
 
 @pytest.fixture
