@@ -1057,8 +1057,11 @@ def scaling_processes(children, domain_id, robots, motion, rtf):
                            for k in range(robots))
             if not session.spin_until(ready, 30.0 + 2.0 * robots, poll=0.05):
                 raise RuntimeError(f'{robots} robots did not come up')
+            # 2N Python processes on a small machine: a participant can be off the CPU for
+            # seconds, which is no reason to go on without it.
             processes.append(children.start('unicycle_sim', namespace='/robot0',
-                                            publish_clock=True, real_time_factor=rtf))
+                                            publish_clock=True, real_time_factor=rtf,
+                                            lockstep_timeout=SCALING_TIMEOUT_S))
             session.spin_until(lambda: all(m.poll() is not None for m in motions),
                                SCALING_TIMEOUT_S + 4.0 * robots, poll=0.05)
         finally:
