@@ -270,8 +270,11 @@ class MotionNode(Node):
         if self.cmd_pub.get_subscription_count() == 0:
             return f'a subscriber on {self.cmd_pub.topic_name}'
         lockstep = self.lockstep
-        if lockstep is not None and not lockstep.joined and lockstep.owner_present:
-            return 'the simulator to take this node into its lockstep'
+        if lockstep is not None and lockstep.owner_present:
+            if not lockstep.joined:
+                return 'the simulator to take this node into its lockstep'
+            if not lockstep.counted_on(self.cmd_pub.topic_name):
+                return f'the node that drives on {self.cmd_pub.topic_name} to join the lockstep'
         if self.odom is None and (self.needs_odom or self.count_publishers(self._odom_topic)):
             # Open loop needs no odometry, but where there is some, the closing line uses it.
             return 'odometry on ' + self._odom_topic
@@ -289,7 +292,12 @@ class MotionNode(Node):
                                          'odometry that cannot be trusted (simulator '
                                          'restarted?)')
                 return
-            silent = time.monotonic() - self._odom_wall
+            last_sign = self._odom_wall
+            if self.lockstep is not None and self.lockstep.roster_wall is not None:
+                # In lockstep the simulator repeats its roster while it holds the clock for a
+                # slow or joining node: odometry is late then because time stands still.
+                last_sign = max(last_sign, self.lockstep.roster_wall)
+            silent = time.monotonic() - last_sign
             if silent > self.params.odom_timeout:
                 self.finish(EXIT_FAILED, f'No odometry for {silent:.1f} s mid-motion; stopped '
                                          'the robot (is the simulator still running?)')

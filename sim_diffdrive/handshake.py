@@ -45,15 +45,15 @@ def answer_topic(clock_topic):
     return clock_topic + '/answers'
 
 
-def members_topic(clock_topic):
-    """Return where the clock owner lists the nodes it waits for."""
-    return clock_topic + '/members'
+def roster_topic(clock_topic):
+    """Return where the clock owner lists the nodes it waits for (see Roster)."""
+    return clock_topic + '/roster'
 
 
 def ignored_topics(clock_topic):
     """Return the topics that are the handshake itself or housekeeping, never counted."""
     return HOUSEKEEPING_TOPICS | {clock_topic, answer_topic(clock_topic),
-                                  members_topic(clock_topic)}
+                                  roster_topic(clock_topic)}
 
 
 _NS = 1_000_000_000
@@ -101,19 +101,41 @@ def _counts(data):
     return {str(topic): int(count) for topic, count in data.items()}
 
 
-def encode_members(owner, step_ns, members):
-    """Return the owner's list of members as the text of a std_msgs/String."""
-    return json.dumps({'owner': owner, 'step_ns': step_ns, 'members': sorted(members)},
-                      separators=(',', ':'))
+@dataclass
+class Roster:
+    """
+    What the clock owner tells the participants: who is counted, and what holds the clock.
 
+    ``heard_topics`` are the topics that some counted node handles (the owner's cmd_vel among
+    them), so a controller can wait until whoever drives on its topic is counted too.  While
+    the clock is held the owner repeats the roster with ``waiting`` filled in, so a participant
+    can tell a held clock from a simulator that is gone.
+    """
 
-def decode_members(text):
-    """Return (owner, set of member ids); raise ValueError when the text is not such a list."""
-    try:
-        data = json.loads(text)
-        return str(data['owner']), {str(member) for member in data['members']}
-    except (TypeError, KeyError, json.JSONDecodeError) as error:
-        raise ValueError(f'not a lockstep member list: {error}') from None
+    owner: str
+    step_ns: int
+    members: set = field(default_factory=set)
+    heard_topics: set = field(default_factory=set)
+    waiting: list = field(default_factory=list)
+
+    def encode(self):
+        """Return the roster as the text of a std_msgs/String."""
+        return json.dumps({'owner': self.owner, 'step_ns': self.step_ns,
+                           'members': sorted(self.members),
+                           'heard_topics': sorted(self.heard_topics), 'waiting': self.waiting},
+                          separators=(',', ':'))
+
+    @classmethod
+    def decode(cls, text):
+        """Parse a roster; raise ValueError when the text is not one."""
+        try:
+            data = json.loads(text)
+            return cls(str(data['owner']), int(data['step_ns']),
+                       {str(m) for m in data['members']},
+                       {str(t) for t in data.get('heard_topics', ())},
+                       [str(w) for w in data.get('waiting', ())])
+        except (TypeError, KeyError, ValueError) as error:
+            raise ValueError(f'not a lockstep roster: {error}') from None
 
 
 class _Member:
@@ -140,11 +162,16 @@ class StepLedger:
 
     def __init__(self):
         self.members = {}
+        # Goes up whenever what roster() returns may have changed.
+        self.version = 0
 
     def receive(self, answer, now_ns):
         """Record an answer; return 'joined', 'left' or None (membership unchanged)."""
         if answer.leaving:
-            return 'left' if self.members.pop(answer.participant, None) else None
+            if self.members.pop(answer.participant, None) is None:
+                return None
+            self.version += 1
+            return 'left'
         member = self.members.get(answer.participant)
         if member is None:
             self.members[answer.participant] = _Member(answer, now_ns)
@@ -160,16 +187,33 @@ class StepLedger:
 
     def drop(self, participant):
         """Go on without a participant (it may join again by answering)."""
-        self.members.pop(participant, None)
+        if self.members.pop(participant, None) is not None:
+            self.version += 1
+
+    def roster(self, owner, now_ns, waiting=()):
+        """Return the roster to publish: the counted members and the topics they handle."""
+        counted = self.synced()
+        return Roster(owner, now_ns, counted,
+                      {topic for pid in counted for topic in self.members[pid].answer.heard},
+                      list(waiting))
 
     def owed(self):
-        """Return {(participant, topic): messages sent by members it has not handled yet}."""
+        """
+        Return {(participant, topic): messages sent by members it has not handled yet}.
+
+        Only for topics without a header stamp (a Twist on cmd_vel): on a stamped topic the
+        latest stamp tells (see waiting_for), and a count could not, since a burst of messages
+        may share one stamp and a member's answer may be older than what another has heard.
+        """
         sent = self._sent_since_join()
+        stamped = self._latest_stamps()
         debts = {}
         for pid, member in self.members.items():
             if not member.synced:
                 continue
             for topic, heard in member.answer.heard.items():
+                if topic in stamped:
+                    continue
                 due = sent.get(topic, 0) - heard - member.offset.get(topic, 0)
                 if due:
                     debts[(pid, topic)] = due
@@ -179,47 +223,46 @@ class StepLedger:
         """
         Return what keeps the step at now_ns from being settled (empty when settled).
 
-        Each reason is (participant, topic or None, messages owed).  A joining member holds
-        the clock until it has answered this step and heard the latest stamped message that
-        members sent on each topic it hears: only then is what it missed before it joined
-        known, and it is counted from there (DDS delivers each writer's messages in order).
+        Each reason is (participant, None, 0) for a missing answer, (participant, topic, 0)
+        for a stamped topic on which it has not heard the latest message members sent, or
+        (participant, topic, n) for n unstamped messages it has not handled.  A joining member
+        holds the clock until it has answered this step and caught up on every stamped topic
+        it hears (DDS delivers each writer's messages in order); it is counted from the first
+        step that is otherwise settled, so what it missed before is known.
         """
         reasons = []
+        caught_up = []
         stamps = self._latest_stamps()
         for pid, member in self.members.items():
             answer = member.answer
             if answer.step_ns < now_ns and (member.synced or member.joined_ns < now_ns):
                 reasons.append((pid, None, 0))
                 continue
-            behind = [topic for topic, stamp in answer.heard_stamp.items()
+            behind = [(pid, topic, 0) for topic, stamp in answer.heard_stamp.items()
                       if stamp < stamps.get(topic, stamp)]
-            if not member.synced:
-                if behind or answer.step_ns < now_ns:
-                    reasons.extend((pid, topic, 1) for topic in behind)
-                    continue
+            reasons.extend(behind)
+            if not member.synced and not behind and answer.step_ns >= now_ns:
+                caught_up.append(member)
+        reasons.extend((pid, topic, due) for (pid, topic), due in self.owed().items()
+                       if due > 0)
+        if not reasons:
+            for member in caught_up:
                 member.synced = True
+                self.version += 1
                 member.offset = {}
                 self._settle_offsets(member)
-            reasons.extend((pid, topic, 1) for topic in behind)
-        for (pid, topic), due in self.owed().items():
-            if due > 0 and not any(r[:2] == (pid, topic) for r in reasons):
-                reasons.append((pid, topic, due))
         return reasons
 
     def next_step(self):
         """Forget what members heard beyond their due (non-members' messages) before a step."""
-        sent = self._sent_since_join()
-        for member in self.members.values():
-            if not member.synced:
-                continue
-            for topic, heard in member.answer.heard.items():
-                if sent.get(topic, 0) - heard - member.offset.get(topic, 0) < 0:
-                    member.offset[topic] = sent.get(topic, 0) - heard
+        for (pid, topic), due in self.owed().items():
+            if due < 0:
+                self.members[pid].offset[topic] += due
 
     def forgive(self, participant, topic):
-        """Stop waiting for messages a member will not hear (lost, or sent before a match)."""
+        """Go on without what a member has not heard: counted messages, or the member itself."""
         member = self.members[participant]
-        if not member.synced:
+        if not member.synced or topic in self._latest_stamps():
             self.drop(participant)
             return
         member.offset[topic] = (self._sent_since_join().get(topic, 0)
@@ -232,7 +275,7 @@ class StepLedger:
         if topic is None:
             return (f'{member.answer.node} did not answer the clock step at '
                     f'{now_ns / _NS:.3f} s (its last answer: {member.answer.step_ns / _NS:.3f} s)')
-        if topic in member.answer.heard_stamp and not self.owed().get((pid, topic)):
+        if not due:
             return f'{member.answer.node} has not heard the latest message on {topic}'
         return f'{member.answer.node} has not handled {due} message(s) on {topic}'
 
@@ -256,6 +299,7 @@ class StepLedger:
         sent = None
         for topic, heard in member.answer.heard.items():
             if topic not in member.offset:
+                self.version += 1
                 if sent is None:
                     sent = self._sent_since_join()
                 member.offset[topic] = sent.get(topic, 0) - heard

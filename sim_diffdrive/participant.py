@@ -22,6 +22,7 @@ node's subscription and timer callbacks and its publishers are counted by wrappi
 the node's code does not change; entities created later are picked up after each callback.
 """
 
+import time
 import uuid
 
 from rclpy.clock import ClockType
@@ -31,15 +32,15 @@ from rclpy.qos import ReliabilityPolicy
 from rosgraph_msgs.msg import Clock as ClockMsg
 from sim_diffdrive.handshake import Answer
 from sim_diffdrive.handshake import answer_topic
-from sim_diffdrive.handshake import decode_members
 from sim_diffdrive.handshake import ignored_topics
-from sim_diffdrive.handshake import members_topic
+from sim_diffdrive.handshake import Roster
+from sim_diffdrive.handshake import roster_topic
 from std_msgs.msg import String
 
 _NS = 1_000_000_000
 ANSWER_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
-MEMBERS_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
-                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
+ROSTER_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                        durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 
 class MessageCounter:
@@ -132,20 +133,27 @@ class Participant:
         self.id = f'{node.get_fully_qualified_name()}#{uuid.uuid4().hex[:8]}'
         self.owner = None
         self.joined = False
+        # The latest roster from the clock owner, and when it came [s, monotonic].
+        self.roster = None
+        self.roster_wall = None
         self._last = None
         # The clock this node runs on (its TimeSource's subscription, remapped or not).
         clock_topic = next((sub.topic_name for sub in node.subscriptions
                             if sub.msg_type is ClockMsg), '/clock')
         self._answer_topic = answer_topic(clock_topic)
         self._publisher = node.create_publisher(String, self._answer_topic, ANSWER_QOS)
-        node.create_subscription(String, members_topic(clock_topic), self._on_members,
-                                 MEMBERS_QOS)
+        node.create_subscription(String, roster_topic(clock_topic), self._on_roster,
+                                 ROSTER_QOS)
         self.counter = MessageCounter(node, clock_topic, self._answer_if_settled)
 
     @property
     def owner_present(self):
         """Whether a simulator that steps in lockstep listens for answers."""
         return self.node.count_subscribers(self._answer_topic) > 0
+
+    def counted_on(self, topic):
+        """Return whether some node that handles topic is counted (say, the robot's simulator)."""
+        return self.roster is not None and topic in self.roster.heard_topics
 
     def settled(self):
         """Return whether the node has run everything due at the latest clock it has seen."""
@@ -182,18 +190,20 @@ class Participant:
         if self.settled():
             self.answer()
 
-    def _on_members(self, msg):
+    def _on_roster(self, msg):
         try:
-            owner, members = decode_members(msg.data)
+            roster = Roster.decode(msg.data)
         except ValueError:
             return
-        self.owner = owner
-        joined = self.id in members
+        self.roster = roster
+        self.roster_wall = time.monotonic()
+        self.owner = roster.owner
+        joined = self.id in roster.members
         if joined != self.joined:
             self.joined = joined
             self.node.get_logger().info(
-                f'Taking part in lockstep with {owner}' if joined
-                else f'No longer in lockstep with {owner}')
+                f'Taking part in lockstep with {roster.owner}' if joined
+                else f'No longer in lockstep with {roster.owner}')
 
 
 def take_part(node):

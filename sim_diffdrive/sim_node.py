@@ -44,13 +44,12 @@ from rclpy.time import Time
 from rosgraph_msgs.msg import Clock as ClockMsg
 from sim_diffdrive.handshake import Answer
 from sim_diffdrive.handshake import answer_topic
-from sim_diffdrive.handshake import encode_members
-from sim_diffdrive.handshake import members_topic
+from sim_diffdrive.handshake import roster_topic
 from sim_diffdrive.handshake import StepLedger
 from sim_diffdrive.kinematics import UnicycleModel
 from sim_diffdrive.participant import ANSWER_QOS
-from sim_diffdrive.participant import MEMBERS_QOS
 from sim_diffdrive.participant import MessageCounter
+from sim_diffdrive.participant import ROSTER_QOS
 from sim_diffdrive.participant import take_part
 from std_msgs.msg import String
 from std_srvs.srv import Empty
@@ -68,6 +67,9 @@ _POSITION_LIMIT = 1e6
 # so it need not fire more often than this [s]; without members it catches up in bursts.
 _LOCKSTEP_TICK_S = 0.0005
 _MAX_CATCH_UP = 20
+# While the clock is held, the roster is repeated this often [s, wall]: participants take it for
+# a sign that the simulator is alive (their odometry is late because time stands still).
+_ROSTER_REPEAT_S = 0.25
 
 PARAMETERS = (
     Spec('rate_hz', 50.0, 'Odometry publish rate [Hz]; with publish_clock also the clock step.',
@@ -207,8 +209,7 @@ class UnicycleSim(Node):
         self._owner_id = self.get_fully_qualified_name() + '#owner'
         clock_topic = self._clock_pub.topic_name
         self._answer_topic = answer_topic(clock_topic)
-        self._members_pub = self.create_publisher(String, members_topic(clock_topic),
-                                                  MEMBERS_QOS)
+        self._roster_pub = self.create_publisher(String, roster_topic(clock_topic), ROSTER_QOS)
         self.create_subscription(String, self._answer_topic, self._on_answer, ANSWER_QOS)
         # This node's own traffic (cmd_vel heard, odom sent) is counted like a participant's;
         # its answer holds the counter's live dicts, so only its step changes (in step()).
@@ -217,8 +218,11 @@ class UnicycleSim(Node):
                                   counter.sent, counter.heard, False, counter.sent_stamp,
                                   counter.heard_stamp)
         self._ledger.receive(self._own_answer, self._sim_ns)
-        self._announced = None
-        self._publish_members()
+        self._ledger.waiting_for(self._sim_ns)  # counts itself from the start
+        self._announced = set()
+        self._roster_version = -1
+        self._roster_wall = 0.0
+        self._publish_roster()
 
     def _on_answer(self, msg):
         try:
@@ -232,19 +236,26 @@ class UnicycleSim(Node):
             self.get_logger().info(f'Lockstep: {answer.node} left at {self._sim_ns / _NS:.3f} s')
         self._try_step()
 
-    def _publish_members(self):
-        """Tell the participants who is counted, when that changed."""
-        members = self._ledger.synced() - {self._owner_id}
-        if members == self._announced:
+    def _publish_roster(self, waiting=()):
+        """Tell the participants who is counted when that changed; repeat it while waiting."""
+        ledger = self._ledger
+        now = time.monotonic()
+        if ledger.version == self._roster_version and not (
+                waiting and now - self._roster_wall >= _ROSTER_REPEAT_S):
             return
-        for pid in members - (self._announced or set()):
-            self.get_logger().info(
-                f'Lockstep: {self._ledger.members[pid].answer.node} takes part from '
-                f'{self._sim_ns / _NS:.3f} s on; {len(members)} participant(s)')
-        self._announced = members
+        roster = ledger.roster(self.get_fully_qualified_name(), self._sim_ns,
+                               [ledger.describe(reason, self._sim_ns) for reason in waiting])
+        for pid in roster.members - self._announced:
+            if pid != self._owner_id:
+                self.get_logger().info(
+                    f'Lockstep: {ledger.members[pid].answer.node} takes part from '
+                    f'{self._sim_ns / _NS:.3f} s on; {len(roster.members) - 1} participant(s)')
+        self._announced = roster.members
+        self._roster_version = ledger.version
+        self._roster_wall = now
         msg = String()
-        msg.data = encode_members(self.get_fully_qualified_name(), self._sim_ns, members)
-        self._members_pub.publish(msg)
+        msg.data = roster.encode()
+        self._roster_pub.publish(msg)
 
     def _try_step(self):
         """Step if the last step is settled and real_time_factor allows it (lockstep only)."""
@@ -253,14 +264,14 @@ class UnicycleSim(Node):
         ledger = self._ledger
         waited = time.monotonic() - self._clock_wall
         if len(ledger.members) <= 1:
-            self._publish_members()
+            self._publish_roster()
             # Freewheel until the first answer (as PX4's lockstep does).
             steps = min(int(waited / self._budget_s), _MAX_CATCH_UP)
             for _ in range(steps):
                 self.step()
             return
         waiting = ledger.waiting_for(self._sim_ns)
-        self._publish_members()
+        self._publish_roster(waiting)
         if waiting:
             if waited <= self.params.lockstep_timeout:
                 return
@@ -282,7 +293,7 @@ class UnicycleSim(Node):
                 ledger.drop(pid)
             else:
                 ledger.forgive(pid, topic)
-        self._publish_members()
+        self._publish_roster()
 
     # -- time -------------------------------------------------------------------------------
 

@@ -16,8 +16,7 @@
 
 import pytest
 from sim_diffdrive.handshake import Answer
-from sim_diffdrive.handshake import decode_members
-from sim_diffdrive.handshake import encode_members
+from sim_diffdrive.handshake import Roster
 from sim_diffdrive.handshake import StepLedger
 
 MS = 1_000_000
@@ -34,6 +33,8 @@ class Owner:
         self.odom_sent = 0
         self.cmd_heard = 0
         self.report()
+        assert ledger.waiting_for(self.now) == []  # the owner counts itself from the start
+        assert ledger.synced() == {'sim'}
 
     def report(self):
         self.ledger.receive(Answer('sim', '/unicycle_sim', self.now, {ODOM: self.odom_sent},
@@ -80,9 +81,34 @@ def test_garbage_is_not_an_answer(text):
         Answer.decode(text)
 
 
-def test_members_round_trip():
-    owner, members = decode_members(encode_members('/sim', 5, {'b', 'a'}))
-    assert (owner, members) == ('/sim', {'a', 'b'})
+def test_roster_round_trip():
+    roster = Roster('/sim', 5, {'b', 'a'}, {CMD}, ['/m did not answer'])
+    assert Roster.decode(roster.encode()) == roster
+    with pytest.raises(ValueError):
+        Roster.decode('{"owner": "/sim"}')
+
+
+def test_the_roster_names_counted_members_and_the_topics_they_handle():
+    ledger = StepLedger()
+    owner = Owner(ledger)
+    owner.step()
+    # A simulator on sim time (another robot's) joins: its cmd_vel is not counted on yet.
+    robot = Answer('r1', '/robot1/unicycle_sim', owner.now - 20 * MS, {}, {'/robot1/cmd_vel': 0})
+    ledger.receive(robot, owner.now)
+    assert ledger.waiting_for(owner.now) == []  # not waited for in the step it joined
+    assert ledger.roster('/sim', owner.now).heard_topics == {CMD}
+    owner.step()
+    assert ledger.waiting_for(owner.now) == [('r1', None, 0)]
+    version = ledger.version
+    robot.step_ns = owner.now
+    ledger.receive(robot, owner.now)
+    assert ledger.waiting_for(owner.now) == []
+    roster = ledger.roster('/sim', owner.now)
+    assert roster.members == {'sim', 'r1'}
+    assert roster.heard_topics == {CMD, '/robot1/cmd_vel'}
+    assert ledger.version > version
+    ledger.drop('r1')
+    assert ledger.roster('/sim', owner.now).heard_topics == {CMD}
 
 
 def test_alone_the_owner_never_waits():
@@ -186,3 +212,34 @@ def test_a_lost_message_is_forgiven_once(joined):
     owner.step()
     ledger.receive(motion(owner.now, 2, 3, owner.now), owner.now)
     assert ledger.waiting_for(owner.now) == [('sim', CMD, 1)]
+
+
+def test_a_burst_on_a_stamped_topic_is_judged_by_its_stamp_not_by_counts():
+    # A simulator on sim time catches up after a clock jump with a burst of odometry all
+    # stamped alike; its answer may report fewer messages than its robot's controller heard.
+    ledger = StepLedger()
+    owner = Owner(ledger)
+    owner.step()
+    robot = Answer('r', '/r/unicycle_sim', owner.now, {'/r/odom': 20},
+                   sent_stamp={'/r/odom': owner.now})
+    controller = Answer('c', '/r/controller', owner.now, heard={'/r/odom': 44},
+                        heard_stamp={'/r/odom': owner.now})
+    for answer in (robot, controller):
+        ledger.receive(answer, owner.now)
+    owner.step()
+    for answer in (robot, controller):
+        answer.step_ns = owner.now
+        ledger.receive(answer, owner.now)
+    assert ledger.waiting_for(owner.now) == []
+    robot.sent['/r/odom'] = 44  # the rest of the burst, now reported
+    ledger.receive(robot, owner.now)
+    assert ledger.waiting_for(owner.now) == []
+    # A newer message the controller has not heard does hold the clock.
+    owner.step()
+    robot.step_ns = controller.step_ns = owner.now
+    robot.sent_stamp['/r/odom'] = owner.now
+    ledger.receive(robot, owner.now)
+    ledger.receive(controller, owner.now)
+    assert ledger.waiting_for(owner.now) == [('c', '/r/odom', 0)]
+    assert 'has not heard the latest message on /r/odom' in ledger.describe(
+        ('c', '/r/odom', 0), owner.now)
