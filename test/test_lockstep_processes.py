@@ -50,6 +50,25 @@ node.create_subscription(Twist, 'cmd_vel', slow, 1000)
 node.create_subscription(Odometry, 'odom', slow, 1000)
 rclpy.spin(node)
 """
+# A participant that, once the robot drives, blocks its executor for longer than a closed
+# loop's odom_timeout (1 s): the simulator holds the clock for it meanwhile.
+STALLER = """
+import time, rclpy
+from nav_msgs.msg import Odometry
+from rclpy.parameter import Parameter
+from sim_diffdrive.participant import take_part
+rclpy.init()
+node = rclpy.create_node('staller', parameter_overrides=[Parameter('use_sim_time', value=True)])
+stalled = []
+def on_odom(odom):
+    if odom.twist.twist.linear.x > 0.0 and not stalled:
+        stalled.append(True)
+        time.sleep(1.5)
+        print('stalled', flush=True)
+node.create_subscription(Odometry, 'odom', on_odom, 10)
+take_part(node)
+rclpy.spin(node)
+"""
 CLOSED_LOOP = ('odom_out_and_back', 'goal_distance:=0.3', 'pause:=0.1', 'angular_speed:=2.0')
 OPEN_LOOP = ('rotate_robot', 'angular_speed_deg:=60.0', 'angle_deg:=90.0', 'clockwise:=true')
 
@@ -71,10 +90,11 @@ def busy_machine():
 
 
 @pytest.fixture
-def simulator(graph):
+def simulator(graph, request):
     """Start unicycle_sim owning time; yield (process, probe on its odometry, reset())."""
+    lockstep_timeout = getattr(request, 'param', 0.5)
     sim = start('unicycle_sim', 'publish_clock:=true', f'real_time_factor:={FACTOR}',
-                'lockstep_timeout:=0.5')
+                f'lockstep_timeout:={lockstep_timeout}')
     probe = graph.probe()
     reset = probe.create_client(Empty, '/unicycle_sim/reset')
 
@@ -165,3 +185,21 @@ def test_a_foreign_publisher_does_not_stall_the_clock(graph, simulator):
     sim_output = stop(sim)
     assert 'nodes publish on /cmd_vel' in sim_output  # the flood did reach the simulator
     assert 'did not answer' not in sim_output and 'going on without' not in sim_output
+
+
+@pytest.mark.parametrize('simulator', [5.0], indirect=True)
+def test_a_clock_held_for_a_slow_participant_is_not_a_dead_simulator(graph, simulator):
+    sim, probe, _ = simulator
+    staller = start_python(STALLER)
+    try:
+        assert graph.spin_until(lambda: 'staller' in ''.join(probe.get_node_names()), 20.0)
+        code, output, odom = run_motion(graph, probe, *CLOSED_LOOP)
+    finally:
+        staller_output = stop(staller)
+    assert 'stalled' in staller_output, staller_output
+    assert code == 0, output  # not 'No odometry for 1.5 s mid-motion'
+    x, y, yaw = pose_of(odom)
+    assert math.hypot(x, y) < 1e-9 and angle_error(yaw, 0.0) < 1e-9, output
+    sim_output = stop(sim)
+    assert 'Lockstep: /staller takes part' in sim_output
+    assert 'going on without' not in sim_output
