@@ -75,7 +75,7 @@ class MessageCounter:
                 sub._lockstep_counter = self
         for timer in node.timers:
             if not getattr(timer, '_lockstep_counter', None):
-                timer.callback = self._timer_callback(timer.callback)
+                timer.callback = self._timer_callback(timer)
                 timer._lockstep_counter = self
         for pub in node.publishers:
             if not getattr(pub, '_lockstep_counter', None):
@@ -106,11 +106,28 @@ class MessageCounter:
             self._after()
         return counted
 
-    def _timer_callback(self, callback):
-        def counted(*args):
+    def _timer_callback(self, timer):
+        callback = timer.callback
+        if timer.clock.clock_type != ClockType.ROS_TIME:
+            def counted(*args):
+                callback(*args)
+                self._after()
+            return counted
+        fired_at = [None]
+
+        def once_per_clock_time(*args):
+            # rclpy's EventsExecutor can queue a timer's event again before running the first
+            # (rclcpp #2771 has the same bug), most often on a loaded machine: the callback then
+            # runs several times at one simulated time, and each run moves the timer a period
+            # further, so later periods are skipped.  Run it once per time; restart the period.
+            now_ns = timer.clock.now().nanoseconds
+            if fired_at[0] == now_ns:
+                timer.reset()
+                return
+            fired_at[0] = now_ns
             callback(*args)
             self._after()
-        return counted
+        return once_per_clock_time
 
     def _counted_publish(self, publish, topic):
         def counted(msg):
