@@ -26,6 +26,7 @@ import math
 import time
 
 from geometry_msgs.msg import Twist
+from geometry_msgs.msg import TwistStamped
 from motion_challenges.angles import yaw_from_quaternion
 from motion_challenges.angles import YawAccumulator
 from motion_challenges.parameters import declare
@@ -57,6 +58,10 @@ COMMON_PARAMETERS = (
     Spec('plot_file', '',
          'Write a PNG of the run (trajectory, start, end and goal) here; empty = no plot. '
          'Needs matplotlib.'),
+    Spec('stamped', False,
+         'Publish geometry_msgs/TwistStamped, stamped with the node clock, instead of Twist '
+         "(ros2_control's diff_drive_controller takes only TwistStamped)."),
+    Spec('frame_id', 'base_footprint', 'With stamped: frame_id of the commands.'),
 )
 # Odometry that moves further than commanded by more than this between two messages is
 # taken for a jump (e.g. a restarted simulator) [m or rad, plus half the commanded motion].
@@ -125,7 +130,8 @@ class MotionNode(Node):
         super().__init__(node_name, **kwargs)
         self.params = declare(self, tuple(specs) + COMMON_PARAMETERS)
         self.period = 1.0 / self.params.rate_hz
-        self.cmd_pub = self.create_publisher(Twist, 'cmd_vel', 10)
+        self.cmd_pub = self.create_publisher(
+            TwistStamped if self.params.stamped else Twist, 'cmd_vel', 10)
         self._odom_topic = self.create_subscription(
             Odometry, 'odom', self._on_odom, 50).topic_name
         self.odom = None
@@ -197,9 +203,15 @@ class MotionNode(Node):
         return self.get_clock().now().nanoseconds
 
     def publish_command(self, linear, angular):
-        msg = Twist()
-        msg.linear.x = float(linear)
-        msg.angular.z = float(angular)
+        twist = Twist()
+        twist.linear.x = float(linear)
+        twist.angular.z = float(angular)
+        if self.params.stamped:
+            msg = TwistStamped(twist=twist)
+            msg.header.stamp = self.get_clock().now().to_msg()
+            msg.header.frame_id = self.params.frame_id
+        else:
+            msg = twist
         self.cmd_pub.publish(msg)
         self.commands.add(self.now_ns(), linear, angular)
 

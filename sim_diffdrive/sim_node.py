@@ -22,6 +22,7 @@ step, ``real_time_factor`` times faster than the wall clock, and publishes it on
 for nodes that run with ``use_sim_time``.
 """
 
+import bisect
 from collections import deque
 import time
 
@@ -154,6 +155,9 @@ class UnicycleSim(Node):
         self._sim_ns = 0
         self._integrated_ns = None
         self._last_cmd_ns = None
+        # On another simulator's clock: stamped commands that are ahead of this node's clock
+        # (sent for a step whose /clock has not reached us yet), as (stamp_ns, linear, angular).
+        self._early_commands = []
 
         self._odom_pub = self.create_publisher(Odometry, 'odom', 10)
         self._path_pub = self.create_publisher(Path, 'path', 1)
@@ -304,6 +308,17 @@ class UnicycleSim(Node):
         return self.get_clock().now().nanoseconds
 
     def _advance_to(self, now_ns):
+        """Integrate the pose up to now_ns, applying early commands at their stamps on the way."""
+        early = self._early_commands
+        if self._integrated_ns is not None and now_ns < self._integrated_ns:
+            early.clear()  # the clock jumped back: they were meant for a time that is gone
+        while early and early[0][0] <= now_ns:
+            stamp_ns, linear, angular = early.pop(0)
+            self._integrate_to(stamp_ns)
+            self._apply(linear, angular, stamp_ns)
+        self._integrate_to(now_ns)
+
+    def _integrate_to(self, now_ns):
         """Integrate the pose up to now_ns, stopping the robot at a cmd_vel timeout on the way."""
         if self._integrated_ns is None or now_ns < self._integrated_ns:
             # First call, or the clock jumped back (e.g. a replayed /clock): restart from here.
@@ -371,9 +386,9 @@ class UnicycleSim(Node):
                 f'max_command_age {self.params.max_command_age:g} s); keeping the last command',
                 throttle_duration_sec=1.0)
             return
-        self._on_twist(msg.twist)
+        self._on_twist(msg.twist, stamp_ns)
 
-    def _on_twist(self, twist):
+    def _on_twist(self, twist, stamp_ns=None):
         linear = twist.linear.x
         angular = twist.angular.z
         if not (abs(linear) <= _COMMAND_LIMIT and abs(angular) <= _COMMAND_LIMIT):
@@ -384,9 +399,12 @@ class UnicycleSim(Node):
                 'command', throttle_duration_sec=1.0)
             return
         now_ns = self.now_ns()
+        if self.lockstep is not None and stamp_ns is not None and stamp_ns > now_ns:
+            # Sent for a clock step that is on its way to us: take effect then, not now.
+            bisect.insort(self._early_commands, (stamp_ns, linear, angular))
+            return
         self._advance_to(now_ns)
-        self.model.command(linear, angular)
-        self._last_cmd_ns = now_ns
+        self._apply(linear, angular, now_ns)
         if self._clock_pub is not None and not self._answered:
             # Only the first command after a step answers it: commands from a publisher that
             # does not follow the clock (teleop, a second controller, a flood) arrive at any
@@ -394,6 +412,10 @@ class UnicycleSim(Node):
             self._answered = True
             reaction_s = min(time.monotonic() - self._clock_wall, self._max_reaction_s)
             self._reaction_s = max(reaction_s, self._reaction_s)
+
+    def _apply(self, linear, angular, at_ns):
+        self.model.command(linear, angular)
+        self._last_cmd_ns = at_ns
 
     def _check_publishers(self):
         count = self.count_publishers(self._cmd_topic)
@@ -410,6 +432,7 @@ class UnicycleSim(Node):
         self._advance_to(self.now_ns())
         self.model.reset(p.initial_x, p.initial_y, p.initial_yaw)
         self._last_cmd_ns = None
+        self._early_commands.clear()
         self._path.clear()
         self.get_logger().info('Reset to the initial pose')
         self._publish_odom()
