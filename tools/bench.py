@@ -1034,8 +1034,9 @@ def scaling_processes(children, domain_id, robots, motion, rtf):
 
     Robot 0's simulator owns /clock (publish_clock at rtf, in lockstep with every other process,
     all of which take part: the motions and the simulators on sim time) and starts last, once
-    every other process is up and connected.  odom_out_and_back waits for odometry before it moves,
-    so each robot starts once its simulator has heard the clock.  Returns the slowest motion's
+    every other process is up and connected.  Commands are TwistStamped (stamped:=true on every
+    node), so a robot's simulator applies each at the step it was sent for even when it arrives
+    before that step's /clock.  Returns the slowest motion's
     sim s / wall s, the largest closure error (both from the motions' closing lines) and how
     many motions did not finish.
     """
@@ -1045,9 +1046,10 @@ def scaling_processes(children, domain_id, robots, motion, rtf):
         try:
             for k in range(1, robots):
                 processes.append(children.start('unicycle_sim', namespace=f'/robot{k}',
-                                                use_sim_time=True))
+                                                use_sim_time=True, stamped=True))
             motions = [children.start('odom_out_and_back', namespace=f'/robot{k}',
-                                      use_sim_time=True, start_timeout=120.0, **motion)
+                                      use_sim_time=True, start_timeout=120.0, stamped=True,
+                                      **motion)
                        for k in range(robots)]
             processes += motions
 
@@ -1061,7 +1063,7 @@ def scaling_processes(children, domain_id, robots, motion, rtf):
             # seconds, which is no reason to go on without it.
             processes.append(children.start('unicycle_sim', namespace='/robot0',
                                             publish_clock=True, real_time_factor=rtf,
-                                            lockstep_timeout=SCALING_TIMEOUT_S))
+                                            lockstep_timeout=SCALING_TIMEOUT_S, stamped=True))
             session.spin_until(lambda: all(m.poll() is not None for m in motions),
                                SCALING_TIMEOUT_S + 4.0 * robots, poll=0.05)
         finally:
@@ -1106,8 +1108,8 @@ def rows_scaling(sizes, children, domain_id, rtf):
             f'unicycle_sim and {drive} executables per robot (-r __ns:=/robotK). '
             f"Robot 0's simulator owns /clock (real_time_factor {rtf:g} as an upper bound) "
             'and starts once all others are connected; the rest use_sim_time and take part in '
-            'its lockstep, so it waits for all 2N-1 of them at every step. odom_out_and_back '
-            'waits for odometry, so no robot starts before its simulator hears the clock. '
+            'its lockstep, so it waits for all 2N-1 of them at every step. Commands are '
+            'TwistStamped, so each simulator applies a command at the step it was sent for. '
             "Factor: slowest motion's sim s / wall s; error: "
             "largest closure error; both from the motions' closing lines of the robots that "
             f'finished (not done: no closing line within {SCALING_TIMEOUT_S:g} s + 4 s per '
