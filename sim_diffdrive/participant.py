@@ -186,7 +186,9 @@ class Participant:
         return True
 
     def answer(self, leaving=False):
-        """Publish this node's answer, unless it says nothing new."""
+        """Publish this node's answer, unless it says nothing new or nobody listens."""
+        if self._publisher.get_subscription_count() == 0:
+            return  # no simulator steps in lockstep (or none yet): spare the hot path
         counter = self.counter
         answer = Answer(self.id, self.node.get_fully_qualified_name(), counter.clock_ns or 0,
                         dict(counter.sent), dict(counter.heard), leaving,
