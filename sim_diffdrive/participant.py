@@ -47,11 +47,13 @@ class MessageCounter:
     """
     Count what a node publishes and handles on its topics by wrapping its entities.
 
-    ``on_callback`` is called after every wrapped subscription or timer callback.
+    ``on_callback`` is called after every wrapped subscription or timer callback; with
+    ``timers`` false the node's timers are left alone (a clock owner's timers are its own).
     """
 
-    def __init__(self, node, clock_topic, on_callback=None):
+    def __init__(self, node, clock_topic, on_callback=None, timers=True):
         self.node = node
+        self._timers = timers
         self._ignored = ignored_topics(clock_topic)
         self.sent = {}
         self.heard = {}
@@ -73,7 +75,7 @@ class MessageCounter:
                     self.heard.setdefault(topic, 0)
                     sub.callback = self._heard_callback(sub.callback, topic)
                 sub._lockstep_counter = self
-        for timer in node.timers:
+        for timer in node.timers if self._timers else ():
             if not getattr(timer, '_lockstep_counter', None):
                 timer.callback = self._timer_callback(timer)
                 timer._lockstep_counter = self

@@ -217,12 +217,13 @@ class UnicycleSim(Node):
         self.create_subscription(String, self._answer_topic, self._on_answer, ANSWER_QOS)
         # This node's own traffic (cmd_vel heard, odom sent) is counted like a participant's;
         # its answer holds the counter's live dicts, so only its step changes (in step()).
-        counter = MessageCounter(self, clock_topic, self._try_step)
+        counter = MessageCounter(self, clock_topic, self._on_news, timers=False)
         self._own_answer = Answer(self._owner_id, self.get_fully_qualified_name(), self._sim_ns,
                                   counter.sent, counter.heard, False, counter.sent_stamp,
                                   counter.heard_stamp)
         self._ledger.receive(self._own_answer, self._sim_ns)
         self._ledger.waiting_for(self._sim_ns)  # counts itself from the start
+        self._waiting = None  # what the current step waits for; None: to be worked out
         self._announced = set()
         self._roster_version = -1
         self._roster_wall = 0.0
@@ -238,6 +239,11 @@ class UnicycleSim(Node):
         change = self._ledger.receive(answer, self._sim_ns)
         if change == 'left':
             self.get_logger().info(f'Lockstep: {answer.node} left at {self._sim_ns / _NS:.3f} s')
+        self._on_news()
+
+    def _on_news(self):
+        """Something the step may wait for has arrived (an answer, a command): look again."""
+        self._waiting = None
         self._try_step()
 
     def _publish_roster(self, waiting=()):
@@ -274,7 +280,10 @@ class UnicycleSim(Node):
             for _ in range(steps):
                 self.step()
             return
-        waiting = ledger.waiting_for(self._sim_ns)
+        if self._waiting is None:
+            # Worked out again only after news; the clock timer in between only paces.
+            self._waiting = ledger.waiting_for(self._sim_ns)
+        waiting = self._waiting
         self._publish_roster(waiting)
         if waiting:
             if waited <= self.params.lockstep_timeout:
@@ -297,6 +306,7 @@ class UnicycleSim(Node):
                 ledger.drop(pid)
             else:
                 ledger.forgive(pid, topic)
+        self._waiting = None
         self._publish_roster()
 
     # -- time -------------------------------------------------------------------------------
@@ -356,6 +366,7 @@ class UnicycleSim(Node):
         """Advance simulated time by one step and publish /clock and odometry."""
         if self._ledger is not None:
             self._ledger.next_step()
+            self._waiting = None
             self._own_answer.step_ns = self._sim_ns + self._step_ns
         self._sim_ns += self._step_ns
         self._advance_to(self._sim_ns)
