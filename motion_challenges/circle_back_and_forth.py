@@ -24,9 +24,9 @@ import math
 
 from motion_challenges.motion_node import rate_spec
 from motion_challenges.motion_node import TimedMotion
-from motion_challenges.parameters import Spec
 from motion_challenges.plans import circle_plan
-from motion_challenges.runtime import run
+from sim_diffdrive.parameters import Spec
+from sim_diffdrive.runtime import run
 
 PARAMETERS = (
     Spec('linear_speed', 0.5, 'Forward speed of the first half period [m/s].',

@@ -27,19 +27,19 @@ import time
 
 from geometry_msgs.msg import Twist
 from geometry_msgs.msg import TwistStamped
-from motion_challenges.angles import yaw_from_quaternion
-from motion_challenges.angles import YawAccumulator
-from motion_challenges.parameters import declare
-from motion_challenges.parameters import Spec
-from motion_challenges.runtime import EXIT_FAILED
-from motion_challenges.runtime import EXIT_OK
 from nav_msgs.msg import Odometry
 from rclpy.clock import Clock
 from rclpy.clock import ClockType
 from rclpy.clock import JumpThreshold
 from rclpy.duration import Duration
 from rclpy.node import Node
+from sim_diffdrive.angles import yaw_from_quaternion
+from sim_diffdrive.angles import YawAccumulator
+from sim_diffdrive.parameters import declare
+from sim_diffdrive.parameters import Spec
 from sim_diffdrive.participant import take_part
+from sim_diffdrive.runtime import EXIT_FAILED
+from sim_diffdrive.runtime import EXIT_OK
 
 _NS = 1_000_000_000
 # How long to wait for the odometry that shows where the robot came to rest.

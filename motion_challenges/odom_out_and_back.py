@@ -24,11 +24,11 @@ so and gives up after ``start_timeout``.
 import math
 
 from motion_challenges.motion_node import MotionNode
-from motion_challenges.parameters import Spec
 from motion_challenges.plans import approach_speed
-from motion_challenges.runtime import run
 from motion_challenges.timed_out_and_back import expected_end
 from motion_challenges.timed_out_and_back import out_and_back_specs
+from sim_diffdrive.parameters import Spec
+from sim_diffdrive.runtime import run
 
 # A segment is complete once less than this is left [m or rad].
 _TOLERANCE = 1e-7

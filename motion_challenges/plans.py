@@ -23,7 +23,7 @@ import bisect
 from dataclasses import dataclass
 import math
 
-from motion_challenges.angles import normalize_angle
+from sim_diffdrive.angles import normalize_angle
 from sim_diffdrive.kinematics import integrate
 
 # ROS time has nanosecond resolution, so a time within 1 ns of a segment boundary is on it.

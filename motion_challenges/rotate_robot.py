@@ -26,7 +26,6 @@ import sys
 
 from motion_challenges.motion_node import rate_spec
 from motion_challenges.motion_node import TimedMotion
-from motion_challenges.parameters import Spec
 from motion_challenges.plans import approach_speed
 from motion_challenges.plans import rotation_plan
 from motion_challenges.prompts import ask_rotation
@@ -34,8 +33,9 @@ from motion_challenges.prompts import InputEnded
 from motion_challenges.prompts import MAX_ANGLE_DEG
 from motion_challenges.prompts import MAX_ANGULAR_SPEED_DEG
 from motion_challenges.prompts import stream_writer
-from motion_challenges.runtime import run
-from motion_challenges.runtime import UsageError
+from sim_diffdrive.parameters import Spec
+from sim_diffdrive.runtime import run
+from sim_diffdrive.runtime import UsageError
 
 # Closed loop: done once less than this is left to turn [rad] (about 6e-6 degrees).
 _ANGLE_TOLERANCE = 1e-7

@@ -25,10 +25,10 @@ import math
 
 from motion_challenges.motion_node import rate_spec
 from motion_challenges.motion_node import TimedMotion
-from motion_challenges.parameters import Spec
 from motion_challenges.plans import out_and_back_plan
-from motion_challenges.runtime import run
 from sim_diffdrive.kinematics import integrate
+from sim_diffdrive.parameters import Spec
+from sim_diffdrive.runtime import run
 
 
 def out_and_back_specs(rate_hz):

@@ -22,7 +22,7 @@ accuracy does not depend on the step length.
 
 import math
 
-from motion_challenges.angles import normalize_angle
+from sim_diffdrive.angles import normalize_angle
 
 # Below this |x| the series for sin(x)/x is exact to double precision and avoids 0/0.
 _SMALL_ANGLE = 1e-4

@@ -29,11 +29,6 @@ import time
 from geometry_msgs.msg import PoseStamped
 from geometry_msgs.msg import Twist
 from geometry_msgs.msg import TwistStamped
-from motion_challenges.angles import quaternion_from_yaw
-from motion_challenges.parameters import declare
-from motion_challenges.parameters import ParameterError
-from motion_challenges.parameters import Spec
-from motion_challenges.runtime import run
 from nav_msgs.msg import Odometry
 from nav_msgs.msg import Path
 from rclpy.clock import Clock
@@ -43,15 +38,20 @@ from rclpy.qos import QoSProfile
 from rclpy.qos import ReliabilityPolicy
 from rclpy.time import Time
 from rosgraph_msgs.msg import Clock as ClockMsg
+from sim_diffdrive.angles import quaternion_from_yaw
 from sim_diffdrive.handshake import Answer
 from sim_diffdrive.handshake import answer_topic
 from sim_diffdrive.handshake import roster_topic
 from sim_diffdrive.handshake import StepLedger
 from sim_diffdrive.kinematics import UnicycleModel
+from sim_diffdrive.parameters import declare
+from sim_diffdrive.parameters import ParameterError
+from sim_diffdrive.parameters import Spec
 from sim_diffdrive.participant import ANSWER_QOS
 from sim_diffdrive.participant import MessageCounter
 from sim_diffdrive.participant import ROSTER_QOS
 from sim_diffdrive.participant import take_part
+from sim_diffdrive.runtime import run
 from std_msgs.msg import String
 from std_srvs.srv import Empty
 

@@ -24,7 +24,6 @@ import os
 import random
 
 from geometry_msgs.msg import Twist
-from motion_challenges.angles import yaw_from_quaternion
 from nav_msgs.msg import Odometry
 import pytest
 import rclpy
@@ -32,6 +31,7 @@ from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from sim_diffdrive.angles import yaw_from_quaternion
 from sim_diffdrive.lockstep import Lockstep
 from sim_diffdrive.sim_node import UnicycleSim
 

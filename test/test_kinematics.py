@@ -18,11 +18,11 @@ from decimal import Decimal
 from decimal import localcontext
 import math
 
-from motion_challenges.angles import normalize_angle
-from motion_challenges.angles import quaternion_from_yaw
-from motion_challenges.angles import yaw_from_quaternion
-from motion_challenges.angles import YawAccumulator
 import pytest
+from sim_diffdrive.angles import normalize_angle
+from sim_diffdrive.angles import quaternion_from_yaw
+from sim_diffdrive.angles import yaw_from_quaternion
+from sim_diffdrive.angles import YawAccumulator
 from sim_diffdrive.kinematics import _sinc
 from sim_diffdrive.kinematics import _SMALL_ANGLE
 from sim_diffdrive.kinematics import integrate

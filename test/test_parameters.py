@@ -16,12 +16,12 @@
 
 import math
 
-from motion_challenges.parameters import declare
-from motion_challenges.parameters import ParameterError
-from motion_challenges.parameters import Spec
 import pytest
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from sim_diffdrive.parameters import declare
+from sim_diffdrive.parameters import ParameterError
+from sim_diffdrive.parameters import Spec
 from sim_diffdrive.sim_node import UnicycleSim
 
 SPEED = Spec('speed', 0.5, 'Forward speed [m/s].', low=0.0, high=2.0)

@@ -14,7 +14,6 @@
 
 import math
 
-from motion_challenges.angles import normalize_angle
 from motion_challenges.plans import approach_speed
 from motion_challenges.plans import circle_plan
 from motion_challenges.plans import final_pose
@@ -24,6 +23,7 @@ from motion_challenges.plans import PiecewisePlan
 from motion_challenges.plans import rotation_plan
 from motion_challenges.plans import Segment
 import pytest
+from sim_diffdrive.angles import normalize_angle
 
 
 def run_ticks(plan, period, start=0.0):

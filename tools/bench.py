@@ -55,7 +55,6 @@ import tempfile
 import time
 
 from geometry_msgs.msg import Twist
-from motion_challenges.angles import yaw_from_quaternion
 from motion_challenges.circle_back_and_forth import CircleBackAndForth
 from motion_challenges.odom_out_and_back import OdomOutAndBack
 from motion_challenges.prompts import RotationRequest
@@ -72,6 +71,7 @@ from rclpy.experimental import EventsExecutor
 from rclpy.logging import LoggingSeverity
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from sim_diffdrive.angles import yaw_from_quaternion
 from sim_diffdrive.kinematics import integrate
 from sim_diffdrive.kinematics import UnicycleModel
 from sim_diffdrive.lockstep import Lockstep

@@ -25,12 +25,12 @@ checked between waits of at most 0.1 s, so no callback is cut off halfway.  The 
 
 import signal
 
-from motion_challenges.parameters import ParameterError
 import rclpy
 from rclpy.executors import ExternalShutdownException
 from rclpy.experimental import EventsExecutor
 from rclpy.impl.implementation_singleton import rclpy_implementation
 from rclpy.signals import SignalHandlerOptions
+from sim_diffdrive.parameters import ParameterError
 
 EXIT_OK = 0
 EXIT_FAILED = 1
