@@ -25,16 +25,16 @@ import math
 import re
 import signal
 
-from conftest import angle_error
-from conftest import pose_of
-from conftest import stamp_s
 from geometry_msgs.msg import Twist
 import pytest
 from rclpy.clock import Clock
 from rclpy.clock import ClockType
-from sim_diffdrive import processes
-from sim_diffdrive.processes import start_python
-from sim_diffdrive.processes import stop
+from sim_diffdrive import harness
+from sim_diffdrive.harness import angle_error
+from sim_diffdrive.harness import pose_of
+from sim_diffdrive.harness import stamp_s
+from sim_diffdrive.harness import start_python
+from sim_diffdrive.harness import stop
 from std_srvs.srv import Empty
 
 FACTOR = 1000.0  # an upper bound: the handshake sets the pace
@@ -74,7 +74,7 @@ OPEN_LOOP = ('rotate_robot', 'angular_speed_deg:=60.0', 'angle_deg:=90.0', 'cloc
 
 
 def start(executable, *params):
-    return processes.start(executable, *processes.ros_params(*params))
+    return harness.start(executable, *harness.ros_params(*params))
 
 
 @pytest.fixture

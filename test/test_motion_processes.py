@@ -25,11 +25,11 @@ import signal
 import subprocess
 import time
 
-from conftest import angle_error
-from conftest import pose_of
 import pytest
-from sim_diffdrive.processes import start
-from sim_diffdrive.processes import stop
+from sim_diffdrive.harness import angle_error
+from sim_diffdrive.harness import pose_of
+from sim_diffdrive.harness import start
+from sim_diffdrive.harness import stop
 
 RATE_HZ = 50.0
 REAL_TIME_FACTOR = 4.0

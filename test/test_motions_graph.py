@@ -16,8 +16,6 @@
 
 import math
 
-from conftest import angle_error
-from conftest import pose_of
 from motion_challenges.circle_back_and_forth import CircleBackAndForth
 from motion_challenges.odom_out_and_back import OdomOutAndBack
 from motion_challenges.prompts import RotationRequest
@@ -25,6 +23,8 @@ from motion_challenges.rotate_robot import RotateRobot
 from motion_challenges.timed_out_and_back import TimedOutAndBack
 import pytest
 from rclpy.parameter import Parameter
+from sim_diffdrive.harness import angle_error
+from sim_diffdrive.harness import pose_of
 
 MM = 1e-3
 HUNDREDTH_DEG = math.radians(0.01)

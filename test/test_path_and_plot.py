@@ -16,13 +16,13 @@
 
 import math
 
-from conftest import pose_of
 from motion_challenges.rotate_robot import ask_missing
 from motion_challenges.rotate_robot import RotateRobot
 from motion_challenges.timed_out_and_back import TimedOutAndBack
 from nav_msgs.msg import Path
 import pytest
 from rclpy.parameter import Parameter
+from sim_diffdrive.harness import pose_of
 
 
 def test_path_follows_the_odometry_and_keeps_its_length_bounded(graph):

@@ -16,10 +16,6 @@
 
 import math
 
-from conftest import angle_error
-from conftest import Graph
-from conftest import pose_of
-from conftest import Probe
 from geometry_msgs.msg import TwistStamped
 import pytest
 from rclpy.node import Node
@@ -28,6 +24,10 @@ from rclpy.qos import QoSProfile
 from rclpy.qos import ReliabilityPolicy
 from rclpy.time import Time
 from rosgraph_msgs.msg import Clock as ClockMsg
+from sim_diffdrive.harness import angle_error
+from sim_diffdrive.harness import pose_of
+from sim_diffdrive.harness import Probe
+from sim_diffdrive.harness import SimGraph
 from std_srvs.srv import Empty
 
 NS = 1_000_000_000
@@ -341,7 +341,7 @@ def test_result_does_not_depend_on_rate_hz(ros_context):
     yaw0, v, w = 0.3, 0.4, 0.7
     poses = {}
     for rate_hz in (10.0, 50.0, 200.0):
-        graph = Graph(ros_context)
+        graph = SimGraph(ros_context)
         try:
             graph.sim(rate_hz=rate_hz, initial_yaw=yaw0)
             probe = graph.probe()

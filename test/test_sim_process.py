@@ -26,9 +26,9 @@ import signal
 import subprocess
 import sys
 
-from conftest import angle_error
-from conftest import pose_of
 import pytest
+from sim_diffdrive.harness import angle_error
+from sim_diffdrive.harness import pose_of
 
 NS = 1_000_000_000
 SIM_ARGS = ('--ros-args', '-p', 'publish_clock:=true', '-p', 'real_time_factor:=5.0')

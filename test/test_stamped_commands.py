@@ -16,13 +16,11 @@
 """
 Stamped commands: motions that publish TwistStamped, and a simulator on another's clock.
 
-In one process, stepped in lockstep by the test (see sim_diffdrive/lockstep.py).
+In one process, stepped in lockstep by the test (see sim_diffdrive/harness.py).
 """
 
 import math
 
-from conftest import angle_error
-from conftest import pose_of
 from geometry_msgs.msg import TwistStamped
 from motion_challenges.odom_out_and_back import OdomOutAndBack
 from motion_challenges.timed_out_and_back import TimedOutAndBack
@@ -31,6 +29,8 @@ import pytest
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.time import Time
+from sim_diffdrive.harness import angle_error
+from sim_diffdrive.harness import pose_of
 from sim_diffdrive.sim_node import UnicycleSim
 
 STEP_NS = 20_000_000  # the simulators' default 50 Hz

@@ -72,9 +72,9 @@ from rclpy.logging import LoggingSeverity
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sim_diffdrive.angles import yaw_from_quaternion
+from sim_diffdrive.harness import Lockstep
 from sim_diffdrive.kinematics import integrate
 from sim_diffdrive.kinematics import UnicycleModel
-from sim_diffdrive.lockstep import Lockstep
 from sim_diffdrive.sim_node import UnicycleSim
 
 NS = 1_000_000_000
@@ -254,7 +254,7 @@ def _node_kwargs(namespace=None, **params):
 
 
 class Graph(Lockstep):
-    """A lockstep graph (sim_diffdrive.lockstep) with its own context, off the network."""
+    """A lockstep graph (sim_diffdrive.harness) with its own context, off the network."""
 
     def __init__(self, executor_class=EventsExecutor, domain_id=None):
         self.context = Context()
