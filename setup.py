@@ -45,5 +45,7 @@ setup(
             'timed_out_and_back = motion_challenges.timed_out_and_back:main',
             'odom_out_and_back = motion_challenges.odom_out_and_back:main',
         ],
+        # The sim_graph fixture, for testing controllers against the simulator.
+        'pytest11': ['sim_graph = sim_diffdrive.pytest_plugin'],
     },
 )

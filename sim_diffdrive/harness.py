@@ -54,6 +54,7 @@ _NS = 1_000_000_000
 # Simulated seconds per wall second of a simulator started by sim(lockstep=False): fast, with a
 # wide margin for a command to cross the graph before the next clock step.
 FREE_REAL_TIME_FACTOR = 10.0
+DOMAIN_VARIABLE = 'SIM_GRAPH_DOMAIN_ID'
 
 
 def pose_of(odom):
@@ -75,16 +76,19 @@ def angle_error(a, b):
 
 def isolated_domain_id():
     """
-    Return this run's ROS domain: ROS_DOMAIN_ID if set, else a random one, exported.
+    Return this test run's ROS domain, chosen at random once and exported; discovery local.
 
-    Also keeps discovery on this machine.  Processes started later inherit both, so a test run
-    never hears another graph, and parallel runs on one machine never hear each other.
+    A run never joins the domain a shell happens to export (a robot, a simulator someone left
+    running): the first call picks a domain in 1..100 and stores it in SIM_GRAPH_DOMAIN_ID
+    (set that to pin one), later calls and the processes started afterwards reuse it through
+    ROS_DOMAIN_ID, and ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST keeps it on this machine.
     """
     # Fast DDS maps a domain to UDP ports; 1..100 stays clear of 0 (everyone's default) and of
     # the top of the valid range.
-    os.environ.setdefault('ROS_DOMAIN_ID', str(random.SystemRandom().randint(1, 100)))
+    domain = os.environ.setdefault(DOMAIN_VARIABLE, str(random.SystemRandom().randint(1, 100)))
+    os.environ['ROS_DOMAIN_ID'] = domain
     os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
-    return int(os.environ['ROS_DOMAIN_ID'])
+    return int(domain)
 
 
 class Lockstep:
@@ -319,9 +323,11 @@ class SimGraph(Lockstep):
     def __exit__(self, *exc):
         self.close()
 
-    def node_params(self, params):
-        """Return parameter_overrides for a node built with the given name=value pairs."""
-        return [Parameter(name, value=value) for name, value in params.items()]
+    @staticmethod
+    def sim_time_params(**params):
+        """Return parameter_overrides for a node under test: use_sim_time and name=value."""
+        params.setdefault('use_sim_time', True)
+        return _overrides(params)
 
     def sim(self, lockstep=True, **params):
         """
@@ -335,7 +341,7 @@ class SimGraph(Lockstep):
         params.setdefault('real_time_factor', FREE_REAL_TIME_FACTOR)
         # The graph steps the clock itself, not the simulator's handshake with other processes.
         params.setdefault('lockstep', False)
-        sim = UnicycleSim(context=self.context, parameter_overrides=self.node_params(params))
+        sim = UnicycleSim(context=self.context, parameter_overrides=_overrides(params))
         self.add_clock_owner(sim) if lockstep else self.add(sim)
         if self._probe is None:
             self._probe = self.probe(name='sim_graph_odom', cmd_topic=None)
@@ -345,7 +351,7 @@ class SimGraph(Lockstep):
         """Add a Probe on sim time (see Probe); it records odometry from the first message."""
         params.setdefault('use_sim_time', True)
         return self.add(Probe(name, cmd_topic=cmd_topic, context=self.context,
-                              parameter_overrides=self.node_params(params)))
+                              parameter_overrides=_overrides(params)))
 
     def pose(self):
         """Return (x, y, yaw) of the latest odometry the graph has seen."""
@@ -379,6 +385,10 @@ class SimGraph(Lockstep):
         self._probe = None
         if self._own_context:
             rclpy.try_shutdown(context=self.context)
+
+
+def _overrides(params):
+    return [Parameter(name, value=value) for name, value in params.items()]
 
 
 # -- processes -------------------------------------------------------------------------------
