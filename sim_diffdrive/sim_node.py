@@ -39,20 +39,13 @@ from rclpy.qos import ReliabilityPolicy
 from rclpy.time import Time
 from rosgraph_msgs.msg import Clock as ClockMsg
 from sim_diffdrive.angles import quaternion_from_yaw
-from sim_diffdrive.handshake import Answer
-from sim_diffdrive.handshake import answer_topic
-from sim_diffdrive.handshake import roster_topic
-from sim_diffdrive.handshake import StepLedger
 from sim_diffdrive.kinematics import UnicycleModel
+from sim_diffdrive.lockstep_owner import LockstepOwner
 from sim_diffdrive.parameters import declare
 from sim_diffdrive.parameters import ParameterError
 from sim_diffdrive.parameters import Spec
-from sim_diffdrive.participant import ANSWER_QOS
-from sim_diffdrive.participant import MessageCounter
-from sim_diffdrive.participant import ROSTER_QOS
 from sim_diffdrive.participant import take_part
 from sim_diffdrive.runtime import run
-from std_msgs.msg import String
 from std_srvs.srv import Empty
 
 _NS = 1_000_000_000
@@ -67,10 +60,6 @@ _POSITION_LIMIT = 1e6
 # In lockstep the clock timer only paces and watches for laggards (answers drive the steps),
 # so it need not fire more often than this [s]; without members it catches up in bursts.
 _LOCKSTEP_TICK_S = 0.0005
-_MAX_CATCH_UP = 20
-# While the clock is held, the roster is repeated this often [s, wall]: participants take it for
-# a sign that the simulator is alive (their odometry is late because time stands still).
-_ROSTER_REPEAT_S = 0.25
 
 PARAMETERS = (
     Spec('rate_hz', 50.0, 'Odometry publish rate [Hz]; with publish_clock also the clock step.',
@@ -173,21 +162,22 @@ class UnicycleSim(Node):
         self._cmd_topic = sub.topic_name
         self.create_service(Empty, '~/reset', self._on_reset)
 
-        self._ledger = None
+        self.lockstep_owner = None
         self.lockstep = None
         if p.publish_clock:
             self._clock_pub = self.create_publisher(
                 ClockMsg, '/clock', QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE))
+            self.clock_topic = self._clock_pub.topic_name
             self._integrated_ns = 0
-            self._clock_wall = time.monotonic()
+            self.clock_wall = time.monotonic()
             self._reaction_s = 0.0
             self._answered = True
             # Pacing never makes simulated time slower than real time.
             self._max_reaction_s = self._step_ns / _NS / _PACING_MARGIN
-            self._budget_s = self._step_ns / _NS / p.real_time_factor
-            period_s = self._budget_s
+            self.step_budget_s = self._step_ns / _NS / p.real_time_factor
+            period_s = self.step_budget_s
             if p.lockstep:
-                self._start_lockstep()
+                self.lockstep_owner = LockstepOwner(self)
                 period_s = max(period_s, _LOCKSTEP_TICK_S)
             self.clock_timer = self.create_timer(
                 period_s, self._on_clock_timer, clock=Clock(clock_type=ClockType.STEADY_TIME))
@@ -205,109 +195,6 @@ class UnicycleSim(Node):
             + (f', publishing /clock at up to {p.real_time_factor:g}x real time'
                + (' in lockstep' if p.lockstep else ' (free clock)')
                if p.publish_clock else ''))
-
-    # -- lockstep (see handshake.py) -----------------------------------------------------------
-
-    def _start_lockstep(self):
-        self._ledger = StepLedger()
-        self._owner_id = self.get_fully_qualified_name() + '#owner'
-        clock_topic = self._clock_pub.topic_name
-        self._answer_topic = answer_topic(clock_topic)
-        self._roster_pub = self.create_publisher(String, roster_topic(clock_topic), ROSTER_QOS)
-        self.create_subscription(String, self._answer_topic, self._on_answer, ANSWER_QOS)
-        # This node's own traffic (cmd_vel heard, odom sent) is counted like a participant's;
-        # its answer holds the counter's live dicts, so only its step changes (in step()).
-        counter = MessageCounter(self, clock_topic, self._on_news, timers=False)
-        self._own_answer = Answer(self._owner_id, self.get_fully_qualified_name(), self._sim_ns,
-                                  counter.sent, counter.heard, False, counter.sent_stamp,
-                                  counter.heard_stamp)
-        self._ledger.receive(self._own_answer, self._sim_ns)
-        self._ledger.waiting_for(self._sim_ns)  # counts itself from the start
-        self._waiting = None  # what the current step waits for; None: to be worked out
-        self._announced = set()
-        self._roster_version = -1
-        self._roster_wall = 0.0
-        self._publish_roster()
-
-    def _on_answer(self, msg):
-        try:
-            answer = Answer.decode(msg.data)
-        except ValueError as error:
-            self.get_logger().warning(f'Ignoring a message on {self._answer_topic}: {error}',
-                                      throttle_duration_sec=5.0)
-            return
-        change = self._ledger.receive(answer, self._sim_ns)
-        if change == 'left':
-            self.get_logger().info(f'Lockstep: {answer.node} left at {self._sim_ns / _NS:.3f} s')
-        self._on_news()
-
-    def _on_news(self):
-        """Something the step may wait for has arrived (an answer, a command): look again."""
-        self._waiting = None
-        self._try_step()
-
-    def _publish_roster(self, waiting=()):
-        """Tell the participants who is counted when that changed; repeat it while waiting."""
-        ledger = self._ledger
-        now = time.monotonic()
-        if ledger.version == self._roster_version and not (
-                waiting and now - self._roster_wall >= _ROSTER_REPEAT_S):
-            return
-        roster = ledger.roster(self.get_fully_qualified_name(), self._sim_ns,
-                               [ledger.describe(reason, self._sim_ns) for reason in waiting])
-        for pid in roster.members - self._announced:
-            if pid != self._owner_id:
-                self.get_logger().info(
-                    f'Lockstep: {ledger.members[pid].answer.node} takes part from '
-                    f'{self._sim_ns / _NS:.3f} s on; {len(roster.members) - 1} participant(s)')
-        self._announced = roster.members
-        self._roster_version = ledger.version
-        self._roster_wall = now
-        msg = String()
-        msg.data = roster.encode()
-        self._roster_pub.publish(msg)
-
-    def _try_step(self):
-        """Step if the last step is settled and real_time_factor allows it (lockstep only)."""
-        if self.clock_timer is None or self.clock_timer.is_canceled():
-            return  # stepped from outside (the in-process harness)
-        ledger = self._ledger
-        waited = time.monotonic() - self._clock_wall
-        if len(ledger.members) <= 1:
-            self._publish_roster()
-            # Freewheel until the first answer (as PX4's lockstep does).
-            steps = min(int(waited / self._budget_s), _MAX_CATCH_UP)
-            for _ in range(steps):
-                self.step()
-            return
-        if self._waiting is None:
-            # Worked out again only after news; the clock timer in between only paces.
-            self._waiting = ledger.waiting_for(self._sim_ns)
-        waiting = self._waiting
-        self._publish_roster(waiting)
-        if waiting:
-            if waited <= self.params.lockstep_timeout:
-                return
-            self._give_up(waiting)
-        if waited >= self._budget_s:
-            self.step()
-
-    def _give_up(self, waiting):
-        """Go on without what did not come within lockstep_timeout; say who it was."""
-        ledger = self._ledger
-        for reason in waiting:
-            pid, topic, _ = reason
-            if pid not in ledger.members:
-                continue  # dropped for another reason already
-            self.get_logger().warning(
-                f'Lockstep: {ledger.describe(reason, self._sim_ns)} within '
-                f'{self.params.lockstep_timeout:g} s; going on without it')
-            if topic is None:
-                ledger.drop(pid)
-            else:
-                ledger.forgive(pid, topic)
-        self._waiting = None
-        self._publish_roster()
 
     # -- time -------------------------------------------------------------------------------
 
@@ -352,27 +239,25 @@ class UnicycleSim(Node):
         return bool(m.target_linear or m.target_angular or m.linear or m.angular)
 
     def _on_clock_timer(self):
-        if self._ledger is not None:
-            self._try_step()
+        if self.lockstep_owner is not None:
+            self.lockstep_owner.try_step()
             return
         # real_time_factor is an upper bound: a step waits until the graph has had a few times
         # its recent reaction time to answer the previous one, so that a command lands on the
         # step it was sent for even when the machine is loaded.
-        if time.monotonic() - self._clock_wall >= _PACING_MARGIN * self._reaction_s:
+        if time.monotonic() - self.clock_wall >= _PACING_MARGIN * self._reaction_s:
             self._reaction_s *= _REACTION_DECAY
             self.step()
 
     def step(self):
         """Advance simulated time by one step and publish /clock and odometry."""
-        if self._ledger is not None:
-            self._ledger.next_step()
-            self._waiting = None
-            self._own_answer.step_ns = self._sim_ns + self._step_ns
+        if self.lockstep_owner is not None:
+            self.lockstep_owner.next_step(self._sim_ns + self._step_ns)
         self._sim_ns += self._step_ns
         self._advance_to(self._sim_ns)
         self._publish_clock()
         self._publish_odom()
-        self._clock_wall = time.monotonic()
+        self.clock_wall = time.monotonic()
         self._answered = False
 
     def _on_odom_timer(self):
@@ -421,7 +306,7 @@ class UnicycleSim(Node):
             # does not follow the clock (teleop, a second controller, a flood) arrive at any
             # time, and counting each would double the wait every step until time stood still.
             self._answered = True
-            reaction_s = min(time.monotonic() - self._clock_wall, self._max_reaction_s)
+            reaction_s = min(time.monotonic() - self.clock_wall, self._max_reaction_s)
             self._reaction_s = max(reaction_s, self._reaction_s)
 
     def _apply(self, linear, angular, at_ns):

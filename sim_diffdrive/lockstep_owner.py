@@ -1,0 +1,154 @@
+# Copyright 2026 motion_challenges contributors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The clock owner's side of the lockstep: step when every participant has answered the last step.
+
+``unicycle_sim`` with ``publish_clock`` and ``lockstep`` hands its stepping to a LockstepOwner:
+it listens to the participants' answers on ``<clock>/answers`` (see handshake.py and
+participant.py), publishes who is counted on ``<clock>/roster``, steps the simulator when the
+last step is settled and ``real_time_factor`` allows it, freewheels until the first answer
+(as PX4's lockstep does), and goes on without a participant that stays silent for
+``lockstep_timeout`` wall seconds, saying who it was.
+"""
+
+import time
+
+from sim_diffdrive.handshake import Answer
+from sim_diffdrive.handshake import answer_topic
+from sim_diffdrive.handshake import roster_topic
+from sim_diffdrive.handshake import StepLedger
+from sim_diffdrive.participant import ANSWER_QOS
+from sim_diffdrive.participant import MessageCounter
+from sim_diffdrive.participant import ROSTER_QOS
+from std_msgs.msg import String
+
+_NS = 1_000_000_000
+# Freewheeling catches up at most this many steps per timer call.
+_MAX_CATCH_UP = 20
+# While the clock is held, the roster is repeated this often [s, wall]: participants take it for
+# a sign that the simulator is alive (their odometry is late because time stands still).
+_ROSTER_REPEAT_S = 0.25
+
+
+class LockstepOwner:
+    """Decide when the simulator ``sim`` (a UnicycleSim owning /clock) may step."""
+
+    def __init__(self, sim):
+        self.sim = sim
+        self.ledger = StepLedger()
+        self._owner_id = sim.get_fully_qualified_name() + '#owner'
+        clock_topic = sim.clock_topic
+        self._answer_topic = answer_topic(clock_topic)
+        self._roster_pub = sim.create_publisher(String, roster_topic(clock_topic), ROSTER_QOS)
+        sim.create_subscription(String, self._answer_topic, self._on_answer, ANSWER_QOS)
+        # The simulator's own traffic (cmd_vel heard, odom sent) is counted like a
+        # participant's; its answer holds the counter's live dicts, so only its step changes.
+        counter = MessageCounter(sim, clock_topic, self._on_news, timers=False)
+        self._own_answer = Answer(self._owner_id, sim.get_fully_qualified_name(), sim.now_ns(),
+                                  counter.sent, counter.heard, False, counter.sent_stamp,
+                                  counter.heard_stamp)
+        self.ledger.receive(self._own_answer, sim.now_ns())
+        self.ledger.waiting_for(sim.now_ns())  # counts itself from the start
+        self._waiting = None  # what the current step waits for; None: to be worked out
+        self._announced = set()
+        self._roster_version = -1
+        self._roster_wall = 0.0
+        self._publish_roster()
+
+    def next_step(self, step_ns):
+        """Start counting answers for the step to step_ns (the simulator is about to take it)."""
+        self.ledger.next_step()
+        self._waiting = None
+        self._own_answer.step_ns = step_ns
+
+    def try_step(self):
+        """Step if the last step is settled and real_time_factor allows it."""
+        sim = self.sim
+        if sim.clock_timer is None or sim.clock_timer.is_canceled():
+            return  # stepped from outside (the in-process harness)
+        ledger = self.ledger
+        waited = time.monotonic() - sim.clock_wall
+        if len(ledger.members) <= 1:
+            self._publish_roster()
+            # Freewheel until the first answer.
+            for _ in range(min(int(waited / sim.step_budget_s), _MAX_CATCH_UP)):
+                sim.step()
+            return
+        if self._waiting is None:
+            # Worked out again only after news; the clock timer in between only paces.
+            self._waiting = ledger.waiting_for(sim.now_ns())
+        waiting = self._waiting
+        self._publish_roster(waiting)
+        if waiting:
+            if waited <= sim.params.lockstep_timeout:
+                return
+            self._give_up(waiting)
+        if waited >= sim.step_budget_s:
+            sim.step()
+
+    def _on_answer(self, msg):
+        try:
+            answer = Answer.decode(msg.data)
+        except ValueError as error:
+            self.sim.get_logger().warning(
+                f'Ignoring a message on {self._answer_topic}: {error}', throttle_duration_sec=5.0)
+            return
+        now_ns = self.sim.now_ns()
+        if self.ledger.receive(answer, now_ns) == 'left':
+            self.sim.get_logger().info(f'Lockstep: {answer.node} left at {now_ns / _NS:.3f} s')
+        self._on_news()
+
+    def _on_news(self):
+        """Something the step may wait for has arrived (an answer, a command): look again."""
+        self._waiting = None
+        self.try_step()
+
+    def _publish_roster(self, waiting=()):
+        """Tell the participants who is counted when that changed; repeat it while waiting."""
+        ledger = self.ledger
+        now = time.monotonic()
+        if ledger.version == self._roster_version and not (
+                waiting and now - self._roster_wall >= _ROSTER_REPEAT_S):
+            return
+        now_ns = self.sim.now_ns()
+        roster = ledger.roster(self.sim.get_fully_qualified_name(), now_ns,
+                               [ledger.describe(reason, now_ns) for reason in waiting])
+        for pid in roster.members - self._announced:
+            if pid != self._owner_id:
+                self.sim.get_logger().info(
+                    f'Lockstep: {ledger.members[pid].answer.node} takes part from '
+                    f'{now_ns / _NS:.3f} s on; {len(roster.members) - 1} participant(s)')
+        self._announced = roster.members
+        self._roster_version = ledger.version
+        self._roster_wall = now
+        self._roster_pub.publish(String(data=roster.encode()))
+
+    def _give_up(self, waiting):
+        """Go on without what did not come within lockstep_timeout; say who it was."""
+        ledger = self.ledger
+        now_ns = self.sim.now_ns()
+        for reason in waiting:
+            pid, topic, _ = reason
+            if pid not in ledger.members:
+                continue  # dropped for another reason already
+            self.sim.get_logger().warning(
+                f'Lockstep: {ledger.describe(reason, now_ns)} within '
+                f'{self.sim.params.lockstep_timeout:g} s; going on without it')
+            if topic is None:
+                ledger.drop(pid)
+            else:
+                ledger.forgive(pid, topic)
+        self._waiting = None
+        self._publish_roster()
