@@ -218,8 +218,11 @@ class UnicycleSim(Node):
     def _integrate_to(self, now_ns):
         """Integrate the pose up to now_ns, stopping the robot at a cmd_vel timeout on the way."""
         if self._integrated_ns is None or now_ns < self._integrated_ns:
-            # First call, or the clock jumped back (e.g. a replayed /clock): restart from here.
+            # First call, or the clock jumped back (e.g. a replayed /clock): restart from here,
+            # and count the cmd_vel timeout from here too, not from a time that is now ahead.
             self._integrated_ns = now_ns
+            if self._last_cmd_ns is not None:
+                self._last_cmd_ns = min(self._last_cmd_ns, now_ns)
             return
         deadline = None
         if self._timeout_ns > 0 and self._last_cmd_ns is not None and self._moving():

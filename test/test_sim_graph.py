@@ -360,45 +360,73 @@ def test_result_does_not_depend_on_rate_hz(ros_context):
         assert angle_error(yaw, expected[2]) < 1e-12
 
 
+class ExternalClock:
+    """A simulator on someone else's /clock, which the test sets to any time it likes."""
+
+    def __init__(self, graph, **params):
+        self.graph = graph
+        self.sim = graph.sim(lockstep=False, publish_clock=False, use_sim_time=True, **params)
+        self.probe = graph.probe()
+        source = graph.add(Node('clock_source', context=graph.context))
+        self.clock_pub = source.create_publisher(
+            ClockMsg, '/clock', QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE))
+        assert graph.spin_until(lambda: self.clock_pub.get_subscription_count() >= 2
+                                and self.probe.cmd_pub.get_subscription_count() >= 1
+                                and all(pub.get_subscription_count() >= 1
+                                        for pub in self.sim.publishers
+                                        if pub.topic_name == '/odom'))
+
+    def set_time(self, t_ns):
+        msg = ClockMsg()
+        msg.clock = Time(nanoseconds=t_ns).to_msg()
+        self.clock_pub.publish(msg)
+        assert self.graph.spin_until(
+            lambda: self.sim.get_clock().now().nanoseconds == t_ns, poll=0.001)
+
+    def send_at(self, t_ns, v, w):
+        self.set_time(t_ns)
+        model = self.sim.model
+        received = model.target_linear, model.target_angular
+        self.probe.send(v, w)
+        assert self.graph.spin_until(
+            lambda: (model.target_linear, model.target_angular) != received, poll=0.001)
+
+    def odom_at(self, t_ns):
+        self.set_time(t_ns)
+        probe = self.probe
+        assert self.graph.spin_until(
+            lambda: probe.odom is not None and stamp_ns(probe.odom) == t_ns,
+            poll=0.001), f'no odometry stamped {t_ns} ns'
+        return probe.odom
+
+
 def test_commands_between_odometry_ticks_are_integrated_piecewise(graph):
     # On someone else's /clock, commands land between the simulator's odometry ticks: the pose
     # must be brought up to each command's arrival before the command takes effect.
-    sim = graph.sim(lockstep=False, publish_clock=False, use_sim_time=True, rate_hz=10.0,
-                    cmd_vel_timeout=0.0)
-    probe = graph.probe()
-    clock_source = graph.add(Node('clock_source', context=graph.context))
-    clock_pub = clock_source.create_publisher(
-        ClockMsg, '/clock', QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE))
-    assert graph.spin_until(lambda: clock_pub.get_subscription_count() >= 2
-                            and probe.cmd_pub.get_subscription_count() >= 1
-                            and all(pub.get_subscription_count() >= 1
-                                    for pub in sim.publishers if pub.topic_name == '/odom'))
-
-    def set_time(t_ns):
-        msg = ClockMsg()
-        msg.clock = Time(nanoseconds=t_ns).to_msg()
-        clock_pub.publish(msg)
-        assert graph.spin_until(lambda: sim.get_clock().now().nanoseconds == t_ns, poll=0.001)
-
-    def send_at(t_ns, v, w):
-        set_time(t_ns)
-        received = sim.model.target_linear, sim.model.target_angular
-        probe.send(v, w)
-        assert graph.spin_until(
-            lambda: (sim.model.target_linear, sim.model.target_angular) != received, poll=0.001)
-
-    def odom_at(t_ns):
-        set_time(t_ns)
-        assert graph.spin_until(lambda: probe.odom is not None and stamp_ns(probe.odom) == t_ns,
-                                poll=0.001), f'no odometry stamped {t_ns} ns'
-        return probe.odom
-
+    clock = ExternalClock(graph, rate_hz=10.0, cmd_vel_timeout=0.0)
     ms = NS // 1000
-    odom_at(1000 * ms)
-    send_at(1050 * ms, 0.5, 0.0)
-    assert_pose(odom_at(1100 * ms), (0.5 * 0.05, 0.0, 0.0))
-    send_at(1130 * ms, 0.5, 1.0)
+    clock.odom_at(1000 * ms)
+    clock.send_at(1050 * ms, 0.5, 0.0)
+    assert_pose(clock.odom_at(1100 * ms), (0.5 * 0.05, 0.0, 0.0))
+    clock.send_at(1130 * ms, 0.5, 1.0)
     x0 = 0.5 * 0.08
-    assert_pose(odom_at(1200 * ms), arc(x0, 0.0, 0.0, 0.5, 1.0, 0.07))
-    send_at(1270 * ms, 0.0, 0.0)
-    assert_pose(odom_at(1300 * ms), arc(x0, 0.0, 0.0, 0.5, 1.0, 0.14))
+    assert_pose(clock.odom_at(1200 * ms), arc(x0, 0.0, 0.0, 0.5, 1.0, 0.07))
+    clock.send_at(1270 * ms, 0.0, 0.0)
+    assert_pose(clock.odom_at(1300 * ms), arc(x0, 0.0, 0.0, 0.5, 1.0, 0.14))
+
+
+def test_cmd_vel_timeout_still_brakes_after_the_clock_jumps_back(graph):
+    # A replayed or restarted /clock goes back in time: the last command's time must not stay
+    # in the future, or the timeout would not brake until the clock caught up with it.
+    clock = ExternalClock(graph, rate_hz=10.0, cmd_vel_timeout=0.5)
+    ms = NS // 1000
+    clock.odom_at(100_000 * ms)
+    clock.send_at(100_000 * ms, 0.5, 0.0)
+    assert clock.odom_at(100_100 * ms).twist.twist.linear.x == 0.5
+    clock.set_time(10_000 * ms)  # the clock jumps back 90.1 s; the odometry timer restarts
+    x_back = clock.odom_at(10_100 * ms).pose.pose.position.x
+    odom = clock.odom_at(10_700 * ms)
+    assert odom.twist.twist.linear.x == 0.0, 'still driving 0.7 s after the jump'
+    # Driven for the timeout from the first time the simulator saw after the jump, then
+    # stopped: 0.5 s at 0.5 m/s.
+    assert odom.pose.pose.position.x == pytest.approx(x_back + 0.25, abs=1e-9)
