@@ -23,8 +23,8 @@ with both parts per tick, on ``cmd_vel``, can stop after ``cycles`` and always s
 import math
 
 from motion_challenges.motion_node import rate_spec
-from motion_challenges.motion_node import TimedMotion
 from motion_challenges.plans import circle_plan
+from motion_challenges.timed_motion import TimedMotion
 from sim_diffdrive.parameters import Spec
 from sim_diffdrive.runtime import run
 

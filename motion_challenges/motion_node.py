@@ -22,11 +22,15 @@ with what odometry says was achieved.  ``shutdown_hook`` (called by runtime.run 
 path) publishes the zero Twist again, so Ctrl-C or SIGTERM mid-motion stops the robot.
 """
 
+import enum
 import math
 import time
 
 from geometry_msgs.msg import Twist
 from geometry_msgs.msg import TwistStamped
+from motion_challenges.controllers import CommandLog
+from motion_challenges.controllers import odometry_fault
+from motion_challenges.controllers import Pose
 from nav_msgs.msg import Odometry
 from rclpy.clock import Clock
 from rclpy.clock import ClockType
@@ -63,9 +67,6 @@ COMMON_PARAMETERS = (
          "(ros2_control's diff_drive_controller takes only TwistStamped)."),
     Spec('frame_id', 'base_footprint', 'With stamped: frame_id of the commands.'),
 )
-# Odometry that moves further than commanded by more than this between two messages is
-# taken for a jump (e.g. a restarted simulator) [m or rad, plus half the commanded motion].
-_JUMP_TOLERANCE = 0.02
 
 
 def rate_spec(default):
@@ -73,47 +74,23 @@ def rate_spec(default):
                 low=0.0, high=1000.0, low_open=True)
 
 
-class OdomPose:
-    """The latest odometry: pose, stamp, and the yaw turned since the motion started."""
+class MotionState(str, enum.Enum):
+    """Where a motion is (a str too, equal to its value, for code that compares with one)."""
+
+    WAITING = 'waiting'  # for the goal, then for the robot (see MotionNode._missing)
+    RUNNING = 'running'  # control() is called every tick
+    SETTLING = 'settling'  # stopped; waiting for odometry that shows where the robot came to rest
+    FINISHED = 'finished'  # done or given up: see exit_code
+
+
+class OdomPose(Pose):
+    """The Pose an Odometry message reports (position, yaw, stamp)."""
 
     def __init__(self, msg):
         p = msg.pose.pose
-        self.x = p.position.x
-        self.y = p.position.y
-        self.yaw = yaw_from_quaternion(
-            p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w)
-        self.stamp_ns = msg.header.stamp.sec * _NS + msg.header.stamp.nanosec
-
-    def distance_to(self, other):
-        return math.hypot(self.x - other.x, self.y - other.y)
-
-
-class CommandLog:
-    """
-    The commands this node published, to predict progress since the last odometry.
-
-    Odometry stamped at s reports the pose at s; the commands published since then have moved
-    the robot on.  Adding their integral over [s, now] removes the one-message lag that would
-    otherwise make a closed loop overshoot.
-    """
-
-    def __init__(self):
-        self._entries = []  # (time_ns, linear, angular), oldest first
-
-    def add(self, now_ns, linear, angular):
-        self._entries.append((now_ns, linear, angular))
-        del self._entries[:-8]
-
-    def integral(self, since_ns, now_ns):
-        """Return (metres, radians) commanded over [since_ns, now_ns]."""
-        linear = angular = 0.0
-        for i, (start, v, w) in enumerate(self._entries):
-            end = self._entries[i + 1][0] if i + 1 < len(self._entries) else now_ns
-            overlap = (min(end, now_ns) - max(start, since_ns)) / _NS
-            if overlap > 0.0:
-                linear += v * overlap
-                angular += w * overlap
-        return linear, angular
+        super().__init__(p.position.x, p.position.y, yaw_from_quaternion(
+            p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w),
+            msg.header.stamp.sec * _NS + msg.header.stamp.nanosec)
 
 
 class MotionNode(Node):
@@ -140,7 +117,7 @@ class MotionNode(Node):
         self.start_odom = None
         self.turned = YawAccumulator()
         self.commands = CommandLog()
-        self.state = 'waiting'
+        self.state = MotionState.WAITING
         self.done = False
         self.exit_code = None
         self.start_ns = None
@@ -180,7 +157,7 @@ class MotionNode(Node):
         if message:
             log = self.get_logger().info if exit_code == EXIT_OK else self.get_logger().error
             log(message)
-        self.state = 'finished'
+        self.state = MotionState.FINISHED
         self.exit_code = exit_code
         self.done = True
         for timer in (self._tick_timer, self._watchdog):
@@ -237,45 +214,28 @@ class MotionNode(Node):
 
     def _take_early_odoms(self, now_ns):
         early = self._early_odoms
-        while early and early[0].stamp_ns < now_ns and self.state != 'finished':
+        while early and early[0].stamp_ns < now_ns and self.state != MotionState.FINISHED:
             self._use_odom(early.pop(0))
 
     def _use_odom(self, odom):
-        if self.needs_odom and self.state == 'running' and self.odom is not None:
-            fault = self._odom_fault(self.odom, odom)
+        if self.needs_odom and self.state == MotionState.RUNNING and self.odom is not None:
+            fault = odometry_fault(self.odom, odom, self.commands)
             if fault:
                 self.finish(EXIT_FAILED, f'{fault}; stopped the robot rather than drive on '
                                          'odometry that cannot be trusted (simulator restarted?)')
                 return
         self.odom = odom
         self.turned.update(odom.yaw)
-        if self.state in ('running', 'settling'):
+        if self.state in (MotionState.RUNNING, MotionState.SETTLING):
             self.trajectory.append((odom.x, odom.y, odom.yaw))
 
     def _on_time_jump(self, jump):
         self._early_odoms.clear()
-        if self.needs_odom and self.state == 'running':
+        if self.needs_odom and self.state == MotionState.RUNNING:
             back_s = -jump.delta.nanoseconds / _NS
             self.finish(EXIT_FAILED, f'Simulated time went back {back_s:.3f} s; stopped the '
                                      'robot rather than drive on odometry that cannot be '
                                      'trusted (simulator restarted?)')
-
-    def _odom_fault(self, last, odom):
-        """Return why odom cannot follow last (time went back, or a jump), or ''."""
-        if odom.stamp_ns < last.stamp_ns:
-            return (f'Odometry went back in time from {last.stamp_ns / _NS:.3f} s to '
-                    f'{odom.stamp_ns / _NS:.3f} s')
-        metres, radians = self.commands.integral(last.stamp_ns, odom.stamp_ns)
-        moved = odom.distance_to(last)
-        turned = math.remainder(odom.yaw - last.yaw, 2.0 * math.pi)
-        # The robot may turn less than commanded (or not at all), but not more, nor the other
-        # way: a restarted simulator back at its initial heading often looks like that.
-        if (moved > 1.5 * abs(metres) + _JUMP_TOLERANCE
-                or not (min(0.0, 1.5 * radians) - _JUMP_TOLERANCE <= turned
-                        <= max(0.0, 1.5 * radians) + _JUMP_TOLERANCE)):
-            return (f'Odometry jumped {moved:.3f} m and {math.degrees(abs(turned)):.1f} deg '
-                    'between two messages')
-        return ''
 
     def _missing(self):
         """Return what the motion still waits for, or '' when it can start."""
@@ -293,7 +253,7 @@ class MotionNode(Node):
         return ''
 
     def _on_watchdog(self):
-        if self.needs_odom and self.state == 'running':
+        if self.needs_odom and self.state == MotionState.RUNNING:
             publishers = self.count_publishers(self._odom_topic)
             if publishers != 1:
                 # A simulator restarted after a crash shows up beside its predecessor (gone
@@ -314,7 +274,7 @@ class MotionNode(Node):
                 self.finish(EXIT_FAILED, f'No odometry for {silent:.1f} s mid-motion; stopped '
                                          'the robot (is the simulator still running?)')
             return
-        if not self._ready or self.state != 'waiting':
+        if not self._ready or self.state != MotionState.WAITING:
             return
         missing = self._missing()
         if not missing and self.get_parameter('use_sim_time').value and self.now_ns() == 0:
@@ -333,7 +293,7 @@ class MotionNode(Node):
         if now_ns == 0:
             return
         self._take_early_odoms(now_ns)
-        if self.state == 'waiting':
+        if self.state == MotionState.WAITING:
             if self._missing():
                 return
             if not self._primed:
@@ -342,21 +302,21 @@ class MotionNode(Node):
                 self.stop_robot()
                 self._primed = True
                 return
-            self.state = 'running'
+            self.state = MotionState.RUNNING
             self.start_ns = now_ns
             self._wall_begun = time.monotonic()
             self.start_odom = self.odom
             self.turned.reset(self.odom.yaw if self.odom else None)
             self.begin(now_ns)
-        if self.state == 'running':
+        if self.state == MotionState.RUNNING:
             command = self.control(now_ns)
             if command is not None:
                 self.publish_command(*command)
                 return
             self.stop_robot()
-            self.state = 'settling'
+            self.state = MotionState.SETTLING
             self._stop_ns = now_ns
-        if self.state == 'settling':
+        if self.state == MotionState.SETTLING:
             self._settle(now_ns)
 
     def _settle(self, now_ns):
@@ -403,30 +363,6 @@ class MotionNode(Node):
         if self.start_odom is None or end_odom is None:
             return 'no odometry, achieved pose unknown'
         return pose_error_text(end_odom, *self.goal_pose(self.start_odom))
-
-
-class TimedMotion(MotionNode):
-    """
-    An open-loop motion that follows a PiecewisePlan on the node clock.
-
-    Each tick publishes the plan's mean command over the coming period, so the commanded
-    integral equals the plan's even when a segment ends between two ticks.
-    """
-
-    def plan(self):
-        raise NotImplementedError
-
-    def begin(self, now_ns):
-        self._plan = self.plan()
-
-    def elapsed(self, now_ns):
-        return (now_ns - self.start_ns) / _NS
-
-    def control(self, now_ns):
-        t = self.elapsed(now_ns)
-        if self._plan.finished(t):
-            return None
-        return self._plan.average(t, t + self.period)
 
 
 def pose_error_text(end, goal_x, goal_y, goal_yaw):

@@ -23,15 +23,13 @@ so and gives up after ``start_timeout``.
 
 import math
 
+from motion_challenges.controllers import Approach
+from motion_challenges.controllers import OutAndBack
 from motion_challenges.motion_node import MotionNode
-from motion_challenges.plans import approach_speed
 from motion_challenges.timed_out_and_back import expected_end
 from motion_challenges.timed_out_and_back import out_and_back_specs
 from sim_diffdrive.parameters import Spec
 from sim_diffdrive.runtime import run
-
-# A segment is complete once less than this is left [m or rad].
-_TOLERANCE = 1e-7
 
 PARAMETERS = out_and_back_specs(50.0) + (
     Spec('linear_accel', 0.5, 'Deceleration used to slow down near the goal distance [m/s^2].',
@@ -53,58 +51,24 @@ class OdomOutAndBack(MotionNode):
     def __init__(self, **kwargs):
         super().__init__('odom_out_and_back', PARAMETERS, **kwargs)
         p = self.params
-        steps = [('drive', p.goal_distance), ('pause', p.pause),
-                 ('turn', p.goal_angle), ('pause', p.pause)]
-        self._steps = [step for _ in range(p.legs) for step in steps if step[1] > 0.0]
+        self.legs = OutAndBack(
+            p.legs, p.goal_distance, p.goal_angle, p.pause,
+            drive=Approach(p.linear_speed, p.min_linear_speed, p.linear_accel, self.period),
+            turn=Approach(p.angular_speed, p.min_angular_speed, p.angular_accel, self.period))
         self.get_logger().info(
             f'{p.legs} leg(s) on odometry: {p.goal_distance:g} m at up to {p.linear_speed:g} '
             f'm/s, turn {math.degrees(p.goal_angle):g} deg at up to {p.angular_speed:g} rad/s')
         self.ready()
 
     def begin(self, now_ns):
-        self._step = -1
-        self._next_step(now_ns)
-
-    def _next_step(self, now_ns):
-        self._step += 1
-        self._step_start_ns = now_ns
-        self._step_odom = self.odom
-        self._step_turned = self.turned.total
+        self.legs.start(now_ns, self.odom, self.turned.total)
 
     def control(self, now_ns):
-        while self._step < len(self._steps):
-            kind, goal = self._steps[self._step]
-            command = getattr(self, '_' + kind)(now_ns, goal)
-            if command is not None:
-                leg = self._step // 4 + 1 if self.params.pause > 0.0 else self._step // 2 + 1
-                self.progress(f'Leg {leg} of {self.params.legs}: {kind}')
-                return command
-            self._next_step(now_ns)
-        return None
-
-    def _drive(self, now_ns, goal):
-        p = self.params
-        metres, _ = self.predicted_progress(now_ns)
-        remaining = goal - (self.odom.distance_to(self._step_odom) + metres)
-        if remaining <= _TOLERANCE:
-            return None
-        return approach_speed(remaining, p.linear_speed, min(p.min_linear_speed, p.linear_speed),
-                              p.linear_accel, self.period), 0.0
-
-    def _turn(self, now_ns, goal):
-        p = self.params
-        _, radians = self.predicted_progress(now_ns)
-        remaining = goal - (self.turned.total - self._step_turned + radians)
-        if remaining <= _TOLERANCE:
-            return None
-        return 0.0, approach_speed(remaining, p.angular_speed,
-                                   min(p.min_angular_speed, p.angular_speed),
-                                   p.angular_accel, self.period)
-
-    def _pause(self, now_ns, duration):
-        if (now_ns - self._step_start_ns) / 1e9 >= duration - 1e-9:
-            return None
-        return 0.0, 0.0
+        command = self.legs.command(now_ns, self.odom, self.turned.total,
+                                    self.predicted_progress(now_ns))
+        if command is not None:
+            self.progress(f'Leg {self.legs.leg} of {self.legs.legs}: {self.legs.step.value}')
+        return command
 
     def goal_pose(self, start):
         p = self.params

@@ -24,21 +24,18 @@ wrapped yaw from odometry, so 720 degrees is two turns, slowing down near the go
 import math
 import sys
 
+from motion_challenges.controllers import SpinController
 from motion_challenges.motion_node import rate_spec
-from motion_challenges.motion_node import TimedMotion
-from motion_challenges.plans import approach_speed
 from motion_challenges.plans import rotation_plan
 from motion_challenges.prompts import ask_rotation
 from motion_challenges.prompts import InputEnded
 from motion_challenges.prompts import MAX_ANGLE_DEG
 from motion_challenges.prompts import MAX_ANGULAR_SPEED_DEG
 from motion_challenges.prompts import stream_writer
+from motion_challenges.timed_motion import TimedMotion
 from sim_diffdrive.parameters import Spec
 from sim_diffdrive.runtime import run
 from sim_diffdrive.runtime import UsageError
-
-# Closed loop: done once less than this is left to turn [rad] (about 6e-6 degrees).
-_ANGLE_TOLERANCE = 1e-7
 
 PARAMETERS = (
     Spec('angular_speed_deg', None, 'Turn rate [deg/s]; asked for when not given.',
@@ -73,14 +70,18 @@ class RotateRobot(TimedMotion):
 
     def start(self, request):
         """Set the goal (from parameters and answers) and begin waiting for the robot."""
+        p = self.params
         self.request = request
-        self.sign = -1.0 if request.clockwise else 1.0
         self.speed = math.radians(request.angular_speed_deg)
         self.goal = math.radians(request.angle_deg)
+        self.spin = SpinController(
+            self.goal, request.clockwise, self.speed, math.radians(p.min_angular_speed_deg),
+            math.radians(p.angular_accel_deg), self.period)
+        self.sign = self.spin.sign
         self.get_logger().info(
             f'Rotating {request.angle_deg:g} deg '
             f'{"clockwise" if request.clockwise else "counter-clockwise"} at '
-            f'{request.angular_speed_deg:g} deg/s ({self.params.mode} mode)')
+            f'{request.angular_speed_deg:g} deg/s ({p.mode} mode)')
         self.ready()
 
     def plan(self):
@@ -98,15 +99,9 @@ class RotateRobot(TimedMotion):
 
     def _closed_loop(self, now_ns):
         _, predicted = self.predicted_progress(now_ns)
-        turned = self.sign * (self.turned.total + predicted)
-        remaining = self.goal - turned
-        if remaining <= _ANGLE_TOLERANCE:
-            return None, turned
-        speed = approach_speed(
-            remaining, self.speed, min(math.radians(self.params.min_angular_speed_deg),
-                                       self.speed),
-            math.radians(self.params.angular_accel_deg), self.period)
-        return (0.0, self.sign * speed), turned
+        angular = self.spin.command(self.turned.total, predicted)
+        turned = self.spin.progress(self.turned.total, predicted)
+        return (None if angular is None else (0.0, angular)), turned
 
     def goal_pose(self, start):
         return start.x, start.y, start.yaw + self.sign * self.goal

@@ -24,8 +24,8 @@ so the robot ends where it started, facing the same way, without rbx1's tick rou
 import math
 
 from motion_challenges.motion_node import rate_spec
-from motion_challenges.motion_node import TimedMotion
 from motion_challenges.plans import out_and_back_plan
+from motion_challenges.timed_motion import TimedMotion
 from sim_diffdrive.kinematics import integrate
 from sim_diffdrive.parameters import Spec
 from sim_diffdrive.runtime import run

@@ -1,0 +1,233 @@
+# Copyright 2026 motion_challenges contributors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The closed loops of the motions on plain numbers: poses, nanoseconds, speeds (no ROS imports).
+
+A node converts its odometry to ``Pose``, logs what it publishes in a ``CommandLog``, and asks
+a ``SpinController`` or an ``OutAndBack`` what to command next; ``odometry_fault`` says when
+odometry cannot be trusted.  Units are SI (m, rad, s; times in integer nanoseconds of the node
+clock) and signs follow REP 103 (counter-clockwise positive).
+"""
+
+from dataclasses import dataclass
+import enum
+import math
+
+from motion_challenges.plans import approach_speed
+
+NS = 1_000_000_000
+# A goal is reached once less than this is left to go [m or rad] (about 6e-6 degrees).
+TOLERANCE = 1e-7
+# Odometry that moves further than commanded by more than this between two messages is
+# taken for a jump (e.g. a restarted simulator) [m or rad, plus half the commanded motion].
+JUMP_TOLERANCE = 0.02
+
+
+@dataclass
+class Pose:
+    """A pose in the odometry frame [m, m, rad], measured at stamp_ns [ns, node clock]."""
+
+    x: float
+    y: float
+    yaw: float
+    stamp_ns: int = 0
+
+    def distance_to(self, other):
+        return math.hypot(self.x - other.x, self.y - other.y)
+
+
+class CommandLog:
+    """
+    The commands a node published, to predict its progress since the last odometry.
+
+    Odometry stamped at s reports the pose at s; the commands published since then have moved
+    the robot on.  Adding their integral over [s, now] removes the one-message lag that would
+    otherwise make a closed loop overshoot.  Each command holds from its time until the next.
+    """
+
+    def __init__(self):
+        self._entries = []  # (time_ns, linear, angular), oldest first
+
+    def add(self, now_ns, linear, angular):
+        self._entries.append((now_ns, linear, angular))
+        del self._entries[:-8]
+
+    def integral(self, since_ns, now_ns):
+        """Return (metres, radians) commanded over [since_ns, now_ns]."""
+        linear = angular = 0.0
+        for i, (start, v, w) in enumerate(self._entries):
+            end = self._entries[i + 1][0] if i + 1 < len(self._entries) else now_ns
+            overlap = (min(end, now_ns) - max(start, since_ns)) / NS
+            if overlap > 0.0:
+                linear += v * overlap
+                angular += w * overlap
+        return linear, angular
+
+
+def odometry_fault(last, pose, commands, tolerance=JUMP_TOLERANCE):
+    """
+    Return why odometry pose cannot follow odometry last, or '' when it can.
+
+    Time must not go back, and the robot must not have moved further than commanded (the
+    CommandLog commands) between the two stamps, nor turned more or the other way: a
+    restarted simulator, back at its initial pose, often looks like that.
+    """
+    if pose.stamp_ns < last.stamp_ns:
+        return (f'Odometry went back in time from {last.stamp_ns / NS:.3f} s to '
+                f'{pose.stamp_ns / NS:.3f} s')
+    metres, radians = commands.integral(last.stamp_ns, pose.stamp_ns)
+    moved = pose.distance_to(last)
+    turned = math.remainder(pose.yaw - last.yaw, 2.0 * math.pi)
+    # The robot may turn less than commanded (or not at all), but not more, nor the other way.
+    if (moved > 1.5 * abs(metres) + tolerance
+            or not (min(0.0, 1.5 * radians) - tolerance <= turned
+                    <= max(0.0, 1.5 * radians) + tolerance)):
+        return (f'Odometry jumped {moved:.3f} m and {math.degrees(abs(turned)):.1f} deg '
+                'between two messages')
+    return ''
+
+
+class Approach:
+    """
+    Nav2 Spin's speed law toward a goal distance or angle: full speed, then slow down onto it.
+
+    ``speed(remaining)`` is clamp(sqrt(2 * accel * remaining), min_speed, max_speed), capped at
+    remaining / period so that the last control period ends on the goal; None once less than
+    tolerance remains.  A min_speed above max_speed is taken as max_speed.
+    """
+
+    def __init__(self, max_speed, min_speed, accel, period, tolerance=TOLERANCE):
+        self.max_speed = max_speed
+        self.min_speed = min(min_speed, max_speed)
+        self.accel = accel
+        self.period = period
+        self.tolerance = tolerance
+        # Refuse bad values now rather than on the first tick.
+        approach_speed(1.0, self.max_speed, self.min_speed, accel, period)
+
+    def speed(self, remaining):
+        if remaining <= self.tolerance:
+            return None
+        return approach_speed(remaining, self.max_speed, self.min_speed, self.accel,
+                              self.period)
+
+
+class SpinController:
+    """
+    Turn in place by goal [rad], closed loop on the yaw turned so far (rotate_robot's odom mode).
+
+    ``turned`` is the accumulated wrapped yaw from odometry since the start (so 4 pi is two
+    turns) and ``predicted`` the yaw commanded since that odometry was measured (CommandLog).
+    """
+
+    def __init__(self, goal, clockwise, max_speed, min_speed, accel, period,
+                 tolerance=TOLERANCE):
+        self.goal = goal
+        self.sign = -1.0 if clockwise else 1.0
+        self.approach = Approach(max_speed, min_speed, accel, period, tolerance)
+
+    def progress(self, turned, predicted=0.0):
+        """Return how far the robot has turned in the goal's direction [rad]."""
+        return self.sign * (turned + predicted)
+
+    def command(self, turned, predicted=0.0):
+        """Return the angular speed to command [rad/s], or None once the goal is reached."""
+        speed = self.approach.speed(self.goal - self.progress(turned, predicted))
+        return None if speed is None else self.sign * speed
+
+
+class Step(enum.Enum):
+    """What one step of an out-and-back leg does."""
+
+    DRIVE = 'drive'
+    PAUSE = 'pause'
+    TURN = 'turn'
+
+
+class OutAndBack:
+    """
+    rbx1's odom_out_and_back as a sequence: each leg drives, pauses, turns, pauses.
+
+    A drive step ends when the distance from where it began reaches goal_distance, a turn step
+    when the yaw turned since it began reaches goal_angle (counter-clockwise), both slowing down
+    on their Approach; a pause after pause seconds.  A pause of 0 leaves the pauses out.
+    Progress is odometry plus ``predicted``: (metres, radians) commanded since it was measured.
+    """
+
+    def __init__(self, legs, goal_distance, goal_angle, pause, drive, turn):
+        self.legs = legs
+        self._drive = drive
+        self._turn = turn
+        leg = ((Step.DRIVE, goal_distance), (Step.PAUSE, pause),
+               (Step.TURN, goal_angle), (Step.PAUSE, pause))
+        self.steps = [(number, kind, goal) for number in range(1, legs + 1)
+                      for kind, goal in leg if goal > 0.0]
+        self._index = None
+
+    @property
+    def leg(self):
+        """Return the number (from 1) of the leg under way, or None before or after."""
+        return self.steps[self._index][0] if self._under_way() else None
+
+    @property
+    def step(self):
+        """Return the Step under way, or None before the start and after the end."""
+        return self.steps[self._index][1] if self._under_way() else None
+
+    @property
+    def finished(self):
+        return self._index is not None and self._index >= len(self.steps)
+
+    def start(self, now_ns, pose, turned):
+        """Begin the first step at now_ns from odometry pose, with turned [rad] accumulated."""
+        self._index = -1
+        self._next_step(now_ns, pose, turned)
+
+    def command(self, now_ns, pose, turned, predicted=(0.0, 0.0)):
+        """Return (linear, angular) to command, moving on past finished steps; None at the end."""
+        while self._index < len(self.steps):
+            _, kind, goal = self.steps[self._index]
+            if kind is Step.DRIVE:
+                command = self._drive_command(goal, pose, predicted[0])
+            elif kind is Step.TURN:
+                command = self._turn_command(goal, turned, predicted[1])
+            else:
+                command = self._pause_command(goal, now_ns)
+            if command is not None:
+                return command
+            self._next_step(now_ns, pose, turned)
+        return None
+
+    def _under_way(self):
+        return self._index is not None and 0 <= self._index < len(self.steps)
+
+    def _next_step(self, now_ns, pose, turned):
+        self._index += 1
+        self._step_start_ns = now_ns
+        self._step_pose = pose
+        self._step_turned = turned
+
+    def _drive_command(self, goal, pose, metres):
+        speed = self._drive.speed(goal - (pose.distance_to(self._step_pose) + metres))
+        return None if speed is None else (speed, 0.0)
+
+    def _turn_command(self, goal, turned, radians):
+        speed = self._turn.speed(goal - (turned - self._step_turned + radians))
+        return None if speed is None else (0.0, speed)
+
+    def _pause_command(self, duration, now_ns):
+        if (now_ns - self._step_start_ns) / 1e9 >= duration - 1e-9:
+            return None
+        return 0.0, 0.0

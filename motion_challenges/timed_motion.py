@@ -1,0 +1,43 @@
+# Copyright 2026 motion_challenges contributors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The open-loop motions' base: follow a PiecewisePlan (motion_challenges.plans) on the node clock.
+
+Each tick publishes the plan's mean command over the coming period, so the commanded integral
+equals the plan's even when a segment ends between two ticks.
+"""
+
+from motion_challenges.motion_node import MotionNode
+
+_NS = 1_000_000_000
+
+
+class TimedMotion(MotionNode):
+    """An open-loop motion: subclasses return their PiecewisePlan from ``plan()``."""
+
+    def plan(self):
+        raise NotImplementedError
+
+    def begin(self, now_ns):
+        self._plan = self.plan()
+
+    def elapsed(self, now_ns):
+        return (now_ns - self.start_ns) / _NS
+
+    def control(self, now_ns):
+        t = self.elapsed(now_ns)
+        if self._plan.finished(t):
+            return None
+        return self._plan.average(t, t + self.period)

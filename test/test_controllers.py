@@ -1,0 +1,241 @@
+# Copyright 2026 motion_challenges contributors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The closed loops on plain numbers, against closed forms; no ROS graph (like Nav2's line_iterator).
+
+A simulated perfect robot integrates each command over one control period, exactly as the
+simulator would, and reports its pose as odometry.
+"""
+
+import math
+
+from motion_challenges.controllers import Approach
+from motion_challenges.controllers import CommandLog
+from motion_challenges.controllers import odometry_fault
+from motion_challenges.controllers import OutAndBack
+from motion_challenges.controllers import Pose
+from motion_challenges.controllers import SpinController
+from motion_challenges.controllers import Step
+from motion_challenges.controllers import TOLERANCE
+import pytest
+from sim_diffdrive.angles import normalize_angle
+from sim_diffdrive.angles import YawAccumulator
+from sim_diffdrive.kinematics import integrate
+
+NS = 1_000_000_000
+MS = 1_000_000
+
+
+def spin_law(remaining, max_speed, min_speed, accel, period):
+    """Nav2 Spin's v = clamp(sqrt(2 a remaining), v_min, v_max), capped to end on the goal."""
+    return min(max(math.sqrt(2.0 * accel * remaining), min_speed), max_speed, remaining / period)
+
+
+def spin_on_a_perfect_robot(spin, period, max_ticks=100000):
+    """Run spin until done; return the commands and the yaw turned."""
+    turned = 0.0
+    commands = []
+    while True:
+        angular = spin.command(turned)
+        if angular is None:
+            return commands, turned
+        commands.append(angular)
+        turned += angular * period
+        assert len(commands) < max_ticks
+
+
+# -- SpinController ---------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize('angle_deg', [0.5, 45.0, 90.0, 180.0, 359.0, 720.0, 1080.0])
+@pytest.mark.parametrize('clockwise', [False, True])
+@pytest.mark.parametrize('period', [0.1, 0.02])
+def test_spin_ends_on_the_goal_and_never_exceeds_its_speed(angle_deg, clockwise, period):
+    max_speed, min_speed, accel = math.radians(60.0), math.radians(2.0), math.radians(180.0)
+    goal = math.radians(angle_deg)
+    spin = SpinController(goal, clockwise, max_speed, min_speed, accel, period)
+    commands, turned = spin_on_a_perfect_robot(spin, period)
+    sign = -1.0 if clockwise else 1.0
+    assert abs(turned - sign * goal) <= TOLERANCE
+    assert all(sign * w > 0.0 for w in commands), 'always turns the asked way'
+    assert max(abs(w) for w in commands) <= max_speed
+    # It takes about as long as a trapezoid without the acceleration ramp: no dawdling.
+    least = goal / max_speed
+    assert least - period <= len(commands) * period <= least + max_speed / accel + 2 * period
+
+
+def test_spin_slows_down_as_nav2_spin_does():
+    max_speed, min_speed, accel, period = 1.0, 0.05, 2.0, 0.02
+    goal = 3.0
+    spin = SpinController(goal, False, max_speed, min_speed, accel, period)
+    turned = 0.0
+    speeds = []
+    while (angular := spin.command(turned)) is not None:
+        remaining = goal - turned
+        assert angular == pytest.approx(spin_law(remaining, max_speed, min_speed, accel, period),
+                                        rel=1e-12)
+        speeds.append(angular)
+        turned += angular * period
+    # Full speed at first, then never faster again while approaching.
+    assert speeds[0] == max_speed
+    assert all(b <= a for a, b in zip(speeds, speeds[1:]))
+    assert min(speeds[:-1]) >= min_speed
+
+
+def test_spin_with_late_odometry_and_the_command_log_ends_on_the_goal():
+    """Odometry one period old plus the commands since is where the robot is."""
+    period_ns = 20 * MS
+    spin = SpinController(math.pi, True, 1.0, 0.05, 2.0, period_ns / NS)
+    log = CommandLog()
+    robot_yaw = 0.0
+    odom = Pose(0.0, 0.0, 0.0, stamp_ns=0)
+    now_ns = 0
+    while True:
+        _, predicted = log.integral(odom.stamp_ns, now_ns)
+        angular = spin.command(odom.yaw, predicted)
+        if angular is None:
+            break
+        log.add(now_ns, 0.0, angular)
+        # The robot measured itself at now_ns; that odometry arrives one tick later.
+        odom = Pose(0.0, 0.0, robot_yaw, stamp_ns=now_ns)
+        robot_yaw += angular * period_ns / NS
+        now_ns += period_ns
+    assert robot_yaw == pytest.approx(-math.pi, abs=TOLERANCE)
+
+
+def test_spin_progress_is_counted_in_the_goal_direction():
+    spin = SpinController(1.0, True, 1.0, 0.1, 1.0, 0.1)
+    assert spin.progress(-0.25, -0.25) == 0.5
+    assert spin.command(-1.0) is None
+    assert spin.command(0.0) == -1.0
+
+
+def test_approach_refuses_bad_values_at_once():
+    with pytest.raises(ValueError):
+        Approach(0.0, 0.1, 1.0, 0.1)
+    with pytest.raises(ValueError):
+        Approach(1.0, 0.1, 1.0, 0.0)
+    # A min speed above the max speed is the max speed.
+    assert Approach(0.5, 2.0, 100.0, 0.01).speed(1.0) == 0.5
+
+
+# -- OutAndBack ---------------------------------------------------------------------------------
+
+
+def out_and_back(legs=2, goal_distance=1.0, goal_angle=math.pi, pause=1.0, period=0.02):
+    return OutAndBack(legs, goal_distance, goal_angle, pause,
+                      drive=Approach(0.2, 0.01, 0.5, period),
+                      turn=Approach(1.0, 0.05, 2.0, period))
+
+
+def drive_legs(legs, x=0.0, y=0.0, yaw=0.0, period_ns=20 * MS):
+    """Run the sequencer on a perfect robot; return the visited steps and the end pose."""
+    turned = YawAccumulator(yaw)
+    now_ns = 0
+    legs.start(now_ns, Pose(x, y, yaw, now_ns), turned.total)
+    visited = [(legs.leg, legs.step, now_ns)]
+    while (command := legs.command(now_ns, Pose(x, y, yaw, now_ns), turned.total)) is not None:
+        if (legs.leg, legs.step) != visited[-1][:2]:
+            visited.append((legs.leg, legs.step, now_ns))
+        x, y, yaw = integrate(x, y, yaw, *command, period_ns / NS)
+        turned.update(yaw)
+        now_ns += period_ns
+        assert now_ns < 1000 * NS
+    visited.append((None, None, now_ns))
+    return visited, (x, y, yaw)
+
+
+def test_out_and_back_visits_drive_pause_turn_pause_per_leg_then_ends():
+    legs = out_and_back(legs=2)
+    assert legs.step is None and not legs.finished
+    visited, (x, y, yaw) = drive_legs(legs, 1.0, -2.0, 0.5)
+    steps = [(leg, step) for leg, step, _ in visited]
+    assert steps == [(1, Step.DRIVE), (1, Step.PAUSE), (1, Step.TURN), (1, Step.PAUSE),
+                     (2, Step.DRIVE), (2, Step.PAUSE), (2, Step.TURN), (2, Step.PAUSE),
+                     (None, None)]
+    assert legs.finished
+    # Out, turn around, back, turn around: where it started, facing the same way.
+    assert math.hypot(x - 1.0, y + 2.0) < 1e-6
+    assert abs(normalize_angle(yaw - 0.5)) < 1e-6
+    # Each pause lasts its second (to the tick).
+    starts = [t for _, _, t in visited]
+    for i, (_, step, start) in enumerate(visited[:-1]):
+        if step is Step.PAUSE:
+            assert (starts[i + 1] - start) / NS == pytest.approx(1.0, abs=0.02 + 1e-9)
+
+
+def test_out_and_back_drives_the_distance_and_turns_the_angle():
+    legs = out_and_back(legs=1, goal_distance=0.7, goal_angle=math.pi / 2, pause=0.0)
+    visited, (x, y, yaw) = drive_legs(legs)
+    assert [step for _, step, _ in visited] == [Step.DRIVE, Step.TURN, None]
+    assert (x, y) == pytest.approx((0.7, 0.0), abs=1e-6)
+    assert yaw == pytest.approx(math.pi / 2, abs=1e-6)
+
+
+def test_out_and_back_uses_the_predicted_progress():
+    legs = out_and_back(legs=1, goal_distance=0.5, pause=0.0)
+    start = Pose(0.0, 0.0, 0.0, 0)
+    legs.start(0, start, 0.0)
+    # Odometry still at the start, but the commands since have covered the distance: turn.
+    assert legs.command(NS, start, 0.0, predicted=(0.5, 0.0)) == (0.0, 1.0)
+    assert legs.step is Step.TURN
+
+
+# -- CommandLog ---------------------------------------------------------------------------------
+
+
+def test_command_log_integrates_each_command_until_the_next():
+    log = CommandLog()
+    log.add(0, 1.0, 0.5)
+    log.add(1 * NS, 2.0, -1.0)
+    log.add(3 * NS, 0.0, 0.0)
+    # [0.5, 2]: half a second of (1, 0.5), one second of (2, -1).
+    assert log.integral(NS // 2, 2 * NS) == pytest.approx((2.5, -0.75), abs=1e-15)
+    # [2.5, 4]: half a second of (2, -1), then the stop.
+    assert log.integral(5 * NS // 2, 4 * NS) == pytest.approx((1.0, -0.5), abs=1e-15)
+    # Nothing was commanded before the first entry; the last holds until now.
+    assert log.integral(-NS, NS // 4) == pytest.approx((0.25, 0.125), abs=1e-15)
+    log.add(5 * NS, 0.1, 0.0)
+    assert log.integral(5 * NS, 7 * NS) == pytest.approx((0.2, 0.0), abs=1e-15)
+    assert log.integral(2 * NS, 2 * NS) == (0.0, 0.0)
+
+
+# -- odometry_fault -----------------------------------------------------------------------------
+
+
+def driving_log(linear=0.2, angular=0.5):
+    log = CommandLog()
+    log.add(0, linear, angular)
+    return log
+
+
+def test_a_normal_step_is_no_fault():
+    log = driving_log()
+    last = Pose(0.0, 0.0, 0.0, 0)
+    x, y, yaw = integrate(0.0, 0.0, 0.0, 0.2, 0.5, 0.02)
+    assert odometry_fault(last, Pose(x, y, yaw, 20 * MS), log) == ''
+    # Less than commanded (blocked, or a slower robot) is no fault either.
+    assert odometry_fault(last, Pose(0.0, 0.0, 0.0, 20 * MS), log) == ''
+
+
+def test_odometry_back_in_time_is_a_fault():
+    fault = odometry_fault(Pose(0.0, 0.0, 0.0, 5 * NS), Pose(0.0, 0.0, 0.0, 4 * NS), driving_log())
+    assert fault == 'Odometry went back in time from 5.000 s to 4.000 s'
+
+
+@pytest.mark.parametrize('x, yaw', [(1.0, 0.0), (0.0, 0.5), (0.0, -0.05)])
+def test_a_jump_or_a_turn_the_wrong_way_is_a_fault(x, yaw):
+    fault = odometry_fault(Pose(0.0, 0.0, 0.0, 0), Pose(x, 0.0, yaw, 20 * MS), driving_log())
+    assert fault.startswith('Odometry jumped')
