@@ -53,7 +53,7 @@ _SETTLE_TICKS = 20
 COMMON_PARAMETERS = (
     Spec('start_timeout', 10.0,
          'How long to wait for the robot (a cmd_vel subscriber, and odometry where the motion '
-         'needs it) before giving up [s, wall time].',
+         'needs it) before giving up [s, wall time], from when the goal is known (typed).',
          low=0.0, high=3600.0, low_open=True),
     Spec('odom_timeout', 1.0,
          'Closed loop: stop and fail when no odometry came for this long mid-motion '
@@ -123,7 +123,7 @@ class MotionNode(Node):
         self.start_ns = None
         self._stop_ns = None
         self._settle_ticks = 0
-        self._wall_start = time.monotonic()
+        self._wall_start = None
         self._wall_begun = None
         self._ready = False
         self._primed = False
@@ -149,6 +149,8 @@ class MotionNode(Node):
 
     def ready(self):
         """Start waiting for the robot and then move (called once the goal is known)."""
+        # start_timeout counts from here: a user answering questions is not a missing robot.
+        self._wall_start = time.monotonic()
         self._ready = True
         self._tick_timer = self.create_timer(self.period, self._on_tick)
 

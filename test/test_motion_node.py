@@ -1,0 +1,76 @@
+# Copyright 2026 motion_challenges contributors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""What every motion node does around its motion: waiting for the robot, states, giving up."""
+
+import math
+import time
+
+from motion_challenges.motion_node import MotionState
+from motion_challenges.prompts import RotationRequest
+from motion_challenges.rotate_robot import RotateRobot
+from rclpy.parameter import Parameter
+from sim_diffdrive.harness import angle_error
+from sim_diffdrive.runtime import EXIT_FAILED
+
+TYPING_S = 1.2  # how long the user takes to answer the questions [s, wall time]
+START_TIMEOUT = 0.5
+
+
+def rotate_robot(graph, **params):
+    params.setdefault('use_sim_time', True)
+    return graph.add(RotateRobot(context=graph.context, parameter_overrides=[
+        Parameter(name, value=value) for name, value in params.items()]))
+
+
+def test_start_timeout_does_not_count_the_time_spent_typing(graph):
+    graph.sim()
+    node = rotate_robot(graph, mode='odom', start_timeout=START_TIMEOUT)
+    graph.wait_for_discovery()
+    time.sleep(TYPING_S)  # rotate_robot asks its questions after building the node
+    node.start(RotationRequest(90.0, 45.0, False))
+    graph.step_until(lambda: node.done, sim_timeout=5.0)
+    assert node.exit_code == 0
+    graph.step_for(0.1)
+    assert angle_error(graph.pose()[2], math.radians(45.0)) < 1e-9
+
+
+def test_without_a_robot_it_gives_up_start_timeout_after_the_answers(graph):
+    node = rotate_robot(graph, start_timeout=START_TIMEOUT)
+    time.sleep(TYPING_S)
+    started = time.monotonic()
+    node.start(RotationRequest(90.0, 45.0, False))
+    assert graph.spin_until(lambda: node.done, timeout=5.0)
+    waited = time.monotonic() - started
+    assert node.exit_code == EXIT_FAILED
+    assert node.state is MotionState.FINISHED
+    # The watchdog looks every 0.5 s.
+    assert START_TIMEOUT <= waited <= START_TIMEOUT + 1.0
+
+
+def test_the_state_goes_waiting_running_settling_finished(graph):
+    graph.sim()
+    node = rotate_robot(graph, mode='odom')
+    states = [node.state]
+
+    def record():
+        if node.state is not states[-1]:
+            states.append(node.state)
+        return node.done
+    node.start(RotationRequest(90.0, 45.0, True))
+    graph.step_until(record, sim_timeout=5.0)
+    assert states == [MotionState.WAITING, MotionState.RUNNING, MotionState.SETTLING,
+                      MotionState.FINISHED]
+    # A str Enum: code that compares with the names still works.
+    assert node.state == 'finished'
