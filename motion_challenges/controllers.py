@@ -21,8 +21,10 @@ odometry cannot be trusted.  Units are SI (m, rad, s; times in integer nanosecon
 clock) and signs follow REP 103 (counter-clockwise positive).
 """
 
+import collections
 from dataclasses import dataclass
 import enum
+import itertools
 import math
 
 from motion_challenges.plans import approach_speed
@@ -30,6 +32,10 @@ from motion_challenges.plans import approach_speed
 NS = 1_000_000_000
 # A goal is reached once less than this is left to go [m or rad] (about 6e-6 degrees).
 TOLERANCE = 1e-7
+# How long a CommandLog keeps a command after the next one [ns of the node clock], when no
+# odometry says what is still needed: longer than a running motion goes without odometry
+# (odom_timeout stops it first, 1 s of wall time by default).
+HORIZON_NS = 30 * NS
 # Odometry that moves further than commanded by more than this between two messages is
 # taken for a jump (e.g. a restarted simulator) [m or rad, plus half the commanded motion].
 JUMP_TOLERANCE = 0.02
@@ -55,20 +61,35 @@ class CommandLog:
     Odometry stamped at s reports the pose at s; the commands published since then have moved
     the robot on.  Adding their integral over [s, now] removes the one-message lag that would
     otherwise make a closed loop overshoot.  Each command holds from its time until the next.
+
+    Commands are kept by time, not by count (a fast controller sends many between two
+    odometry messages): ``forget_before(s)`` drops those that ended before s, the oldest time
+    still to be asked for, and none is kept longer than horizon_ns behind the newest, so that
+    a log nobody asks stays small.
     """
 
-    def __init__(self):
-        self._entries = []  # (time_ns, linear, angular), oldest first
+    def __init__(self, horizon_ns=HORIZON_NS):
+        self.horizon_ns = horizon_ns
+        self._entries = collections.deque()  # (time_ns, linear, angular), oldest first
+
+    def __len__(self):
+        return len(self._entries)
 
     def add(self, now_ns, linear, angular):
         self._entries.append((now_ns, linear, angular))
-        del self._entries[:-8]
+        self.forget_before(now_ns - self.horizon_ns)
+
+    def forget_before(self, t_ns):
+        """Drop the commands that ended before t_ns (the latest one always stays)."""
+        entries = self._entries
+        while len(entries) > 1 and entries[1][0] <= t_ns:
+            entries.popleft()
 
     def integral(self, since_ns, now_ns):
         """Return (metres, radians) commanded over [since_ns, now_ns]."""
         linear = angular = 0.0
-        for i, (start, v, w) in enumerate(self._entries):
-            end = self._entries[i + 1][0] if i + 1 < len(self._entries) else now_ns
+        ends = itertools.chain(itertools.islice(self._entries, 1, None), ((now_ns,),))
+        for (start, v, w), (end, *_) in zip(self._entries, ends):
             overlap = (min(end, now_ns) - max(start, since_ns)) / NS
             if overlap > 0.0:
                 linear += v * overlap

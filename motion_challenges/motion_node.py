@@ -228,6 +228,8 @@ class MotionNode(Node):
                 return
         self.odom = odom
         self.turned.update(odom.yaw)
+        # Nothing before the latest odometry is asked for again (see predicted_progress).
+        self.commands.forget_before(odom.stamp_ns)
         if self.state in (MotionState.RUNNING, MotionState.SETTLING):
             self.trajectory.append((odom.x, odom.y, odom.yaw))
 

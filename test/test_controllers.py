@@ -239,3 +239,42 @@ def test_odometry_back_in_time_is_a_fault():
 def test_a_jump_or_a_turn_the_wrong_way_is_a_fault(x, yaw):
     fault = odometry_fault(Pose(0.0, 0.0, 0.0, 0), Pose(x, 0.0, yaw, 20 * MS), driving_log())
     assert fault.startswith('Odometry jumped')
+
+
+def test_command_log_keeps_every_command_since_the_last_odometry():
+    """A 200 Hz controller on 10 Hz odometry: twenty commands lie between two odometry stamps."""
+    log = CommandLog()
+    period_ns = 5 * MS
+    for k in range(40):
+        log.add(k * period_ns, 0.01 * k, -0.02 * k)
+    # Between the odometry stamped at 0 and the next at 0.1 s (the jump check) ...
+    metres, radians = log.integral(0, 100 * MS)
+    assert metres == pytest.approx(sum(0.01 * k * 0.005 for k in range(20)), rel=1e-12)
+    assert radians == pytest.approx(sum(-0.02 * k * 0.005 for k in range(20)), rel=1e-12)
+    # ... and since the odometry at 0.1 s until now, 0.2 s (the lag compensation).
+    metres, radians = log.integral(100 * MS, 200 * MS)
+    assert metres == pytest.approx(sum(0.01 * k * 0.005 for k in range(20, 40)), rel=1e-12)
+    assert radians == pytest.approx(sum(-0.02 * k * 0.005 for k in range(20, 40)), rel=1e-12)
+
+
+def test_command_log_forgets_what_ended_before_the_latest_odometry():
+    log = CommandLog()
+    for k in range(1000):  # 5 s at 200 Hz, odometry at 10 Hz
+        log.add(k * 5 * MS, 1.0, 0.5)
+        if k % 20 == 0:
+            log.forget_before(k * 5 * MS)
+    assert len(log) <= 21
+    # What is still asked for is all there: since the latest odometry, at 4.9 s.
+    assert log.integral(4900 * MS, 5000 * MS) == pytest.approx((0.1, 0.05), rel=1e-12)
+    # The command under way at t stays, even when it began before t.
+    log.forget_before(4997 * MS)
+    assert len(log) == 1
+    assert log.integral(4997 * MS, 5000 * MS) == pytest.approx((0.003, 0.0015), rel=1e-12)
+
+
+def test_command_log_nobody_asks_keeps_only_its_horizon():
+    log = CommandLog(horizon_ns=NS)
+    for k in range(10000):  # 10 s at 1 kHz, no odometry
+        log.add(k * MS, 1.0, 0.0)
+    assert len(log) <= 1001
+    assert log.integral(8999 * MS, 9999 * MS) == pytest.approx((1.0, 0.0), rel=1e-12)

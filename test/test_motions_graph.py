@@ -25,14 +25,16 @@ import pytest
 from rclpy.parameter import Parameter
 from sim_diffdrive.harness import angle_error
 from sim_diffdrive.harness import pose_of
+from sim_diffdrive.harness import Probe
+from sim_diffdrive.sim_node import UnicycleSim
 
 MM = 1e-3
 HUNDREDTH_DEG = math.radians(0.01)
 
 
-def build(graph, node_class, **params):
+def build(graph, node_class, namespace=None, **params):
     params.setdefault('use_sim_time', True)
-    return graph.add(node_class(context=graph.context, parameter_overrides=[
+    return graph.add(node_class(namespace=namespace, context=graph.context, parameter_overrides=[
         Parameter(name, value=value) for name, value in params.items()]))
 
 
@@ -56,6 +58,20 @@ def test_rotate_ends_at_goal_yaw(graph, mode, clockwise, angle_deg):
     goal = math.radians(-angle_deg if clockwise else angle_deg)
     assert angle_error(yaw, goal) < HUNDREDTH_DEG
     assert node.turned.total == pytest.approx(goal, abs=HUNDREDTH_DEG)
+    assert probe.odom.twist.twist.angular.z == 0.0
+
+
+@pytest.mark.parametrize('clockwise', [True, False])
+def test_rotate_on_odometry_far_slower_than_its_control_rate_ends_at_goal_yaw(graph, clockwise):
+    """Twenty commands between two odometry messages all count in the lag compensation."""
+    graph.sim(rate_hz=200.0)  # owns the clock, in steps of 5 ms
+    build(graph, UnicycleSim, namespace='/robot1', rate_hz=10.0)
+    probe = build(graph, Probe, namespace='/robot1', cmd_topic=None)
+    node = build(graph, RotateRobot, namespace='/robot1', mode='odom', rate_hz=200.0)
+    node.start(RotationRequest(60.0, 90.0, clockwise))
+    run_to_end(graph, node, sim_timeout=5.0)
+    _, _, yaw = pose_of(probe.odom)
+    assert angle_error(yaw, math.radians(-90.0 if clockwise else 90.0)) < 1e-9
     assert probe.odom.twist.twist.angular.z == 0.0
 
 
