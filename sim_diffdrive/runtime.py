@@ -20,7 +20,9 @@ after which a last zero Twist can no longer be published.  So the context is sta
 rclpy's signal handlers and SIGINT and SIGTERM are handled here: while Python code waits (for
 typed input, say) they raise KeyboardInterrupt; while the executor spins they only set a flag,
 checked between waits of at most 0.1 s, so no callback is cut off halfway.  The node's
-``shutdown_hook`` (the motions' final stop) then runs while the context is still valid.
+``shutdown_hook`` (the motions' final stop) then runs while the context is still valid; should
+it fail, the error is logged, the exit code is 1, and the node is destroyed and rclpy shut down
+all the same.
 """
 
 import signal
@@ -104,14 +106,27 @@ def run(make_node, args=None):
     except ExternalShutdownException:
         exit_code = EXIT_FAILED
     finally:
-        if node is not None:
-            try:
-                hook = getattr(node, 'shutdown_hook', None)
-                if hook is not None:
-                    hook()
-            except KeyboardInterrupt:
-                # A second Ctrl-C during the final stop must not skip the cleanup below.
-                pass
-            node.destroy_node()
-        rclpy.try_shutdown()
+        try:
+            if node is not None:
+                if not _run_shutdown_hook(node, logger):
+                    exit_code = EXIT_FAILED
+                node.destroy_node()
+        finally:
+            rclpy.try_shutdown()
     return exit_code
+
+
+def _run_shutdown_hook(node, logger):
+    """Call the node's shutdown_hook, if any; return False when it failed (it is logged)."""
+    hook = getattr(node, 'shutdown_hook', None)
+    try:
+        if hook is not None:
+            hook()
+    except KeyboardInterrupt:
+        # A second Ctrl-C during the final stop must not skip the cleanup after it.
+        pass
+    except Exception as error:
+        logger.error(f'shutdown_hook failed ({type(error).__name__}: {error}); the robot '
+                     'may not have been told to stop')
+        return False
+    return True
