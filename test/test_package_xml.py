@@ -1,0 +1,99 @@
+# Copyright 2026 motion_challenges contributors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+package.xml declares what the installed code imports, and nothing else, as exec_depend.
+
+rosdep installs a package's exec_depends on a user's machine: a module imported but not
+declared breaks there (matplotlib for plot_file), one declared but not imported is installed
+for nothing.  The list is derived from the imports of the installed Python packages, read with
+ast, so a new import (numpy in the simulator, say) shows up here until it is declared.
+"""
+
+import ast
+from pathlib import Path
+import sys
+import xml.etree.ElementTree as ElementTree
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+# The Python packages setup.py installs.
+INSTALLED = ('motion_challenges', 'sim_diffdrive')
+# rosdep keys of the modules that are not ROS packages of their own name.
+ROSDEP_KEYS = {
+    'matplotlib': 'python3-matplotlib',
+    'numpy': 'python3-numpy',
+    'pytest': 'python3-pytest',
+    'yaml': 'python3-yaml',
+}
+# ROS packages a Python module of the same name comes from.
+ROS_PACKAGES = {'geometry_msgs', 'nav_msgs', 'rcl_interfaces', 'rclpy', 'rosgraph_msgs',
+                'std_msgs', 'std_srvs'}
+
+
+def third_party_imports():
+    """Return {top-level module: [files importing it]} for the installed packages."""
+    found = {}
+    for package in INSTALLED:
+        for path in sorted((ROOT / package).rglob('*.py')):
+            for node in ast.walk(ast.parse(path.read_text(), str(path))):
+                if isinstance(node, ast.Import):
+                    names = [alias.name for alias in node.names]
+                elif isinstance(node, ast.ImportFrom) and node.level == 0:
+                    names = [node.module]
+                else:
+                    continue
+                for name in names:
+                    top = name.partition('.')[0]
+                    if top not in sys.stdlib_module_names and top not in INSTALLED:
+                        found.setdefault(top, set()).add(str(path.relative_to(ROOT)))
+    return {module: sorted(files) for module, files in found.items()}
+
+
+def declared(tag):
+    root = ElementTree.parse(ROOT / 'package.xml').getroot()
+    return {element.text.strip() for element in root.iter(tag)}
+
+
+def test_the_scan_sees_the_imports_it_is_meant_to():
+    imports = third_party_imports()
+    # rclpy everywhere; matplotlib only inside plot_run(), imported when a plot is asked for.
+    assert 'rclpy' in imports
+    assert imports['matplotlib'] == ['motion_challenges/plotting.py']
+
+
+def test_every_imported_module_is_an_exec_depend():
+    exec_depends = declared('exec_depend')
+    missing = {}
+    for module, files in sorted(third_party_imports().items()):
+        assert module in ROSDEP_KEYS or module in ROS_PACKAGES, (
+            f'{module} (imported by {files}): add its rosdep key to ROSDEP_KEYS')
+        key = ROSDEP_KEYS.get(module, module)
+        if key not in exec_depends:
+            missing[key] = files
+    assert not missing, f'imported but not declared as <exec_depend>: {missing}'
+
+
+def test_no_exec_depend_goes_unused():
+    keys = {ROSDEP_KEYS.get(module, module) for module in third_party_imports()}
+    unused = declared('exec_depend') - keys
+    assert not unused, f'declared as <exec_depend> but imported by no installed module: {unused}'
+
+
+def test_package_xml_is_valid_format_3():
+    package = pytest.importorskip('catkin_pkg.package')
+    manifest = package.parse_package(str(ROOT / 'package.xml'))
+    assert manifest.package_format == 3
+    manifest.validate()
