@@ -33,11 +33,13 @@ process's environment (ROS_DOMAIN_ID, discovery range), and stop them like Ctrl-
 
 import math
 import os
+from pathlib import Path
 import random
 import shutil
 import signal
 import subprocess
 import sys
+import tempfile
 import time
 
 from geometry_msgs.msg import Twist
@@ -48,6 +50,7 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sim_diffdrive.angles import yaw_from_quaternion
+from sim_diffdrive.lockstep import Lockstep
 from sim_diffdrive.sim_node import UnicycleSim
 
 _NS = 1_000_000_000
@@ -62,6 +65,16 @@ def pose_of(odom):
     p = odom.pose.pose
     return p.position.x, p.position.y, yaw_from_quaternion(
         p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w)
+
+
+def twist_of(odom):
+    """Return (linear.x, angular.z) of an Odometry message's twist."""
+    return odom.twist.twist.linear.x, odom.twist.twist.angular.z
+
+
+def is_moving(odom):
+    """Return whether odometry (None: none yet) shows the robot moving."""
+    return odom is not None and twist_of(odom) != (0.0, 0.0)
 
 
 def stamp_s(msg):
@@ -91,170 +104,21 @@ def isolated_domain_id():
     return int(domain)
 
 
-class Lockstep:
-    """
-    The nodes of one test or benchmark run, spun by ``executor``, stepped by ``step()``.
-
-    Once the nodes have discovered each other, every publish adds the number of in-graph
-    subscriptions of its topic to what must arrive, every subscription callback counts one
-    arrival, and a step is settled when the two agree.
-    """
-
-    def __init__(self, executor):
-        self.executor = executor
-        self.nodes = []
-        self.clock_owner = None
-        self.steps = 0
-        self._subscribers = {}
-        self._sent = 0
-        self._handled = 0
-        self._discovered = False
-
-    def add(self, node):
-        """Spin node with the graph and count its traffic."""
-        self.nodes.append(node)
-        self.executor.add_node(node)
-        self._discovered = False
-        return node
-
-    def add_clock_owner(self, sim):
-        """Add a UnicycleSim with publish_clock whose clock ``step()`` advances (not a timer)."""
-        sim.clock_timer.cancel()
-        self.clock_owner = sim
-        return self.add(sim)
-
-    def remove(self, node):
-        """Stop spinning node and destroy it; wait until the graph has forgotten its publishers."""
-        topics = {pub.topic_name for pub in node.publishers}
-        self.executor.remove_node(node)
-        self.nodes.remove(node)
-        node.destroy_node()
-        self._instrument()
-
-        # A destroyed publisher leaves the graph a little later: wait, so that the next node on
-        # its topic is not taken for a second publisher.
-        def forgotten():
-            return all(self.clock_owner.count_publishers(topic) <= sum(
-                pub.topic_name == topic for n in self.nodes for pub in n.publishers)
-                for topic in topics)
-        self.spin_until(forgotten, 10.0, poll=0.005)
-
-    def close(self):
-        """Destroy every node and shut the executor down (the context is the caller's)."""
-        for node in reversed(self.nodes):
-            self.executor.remove_node(node)
-            node.destroy_node()
-        self.nodes = []
-        self.executor.shutdown()
-
-    # -- spinning -----------------------------------------------------------------------------
-
-    def spin_until(self, predicate, timeout, poll=0.001):
-        """Spin until predicate() is true; return whether it became true within timeout (wall)."""
-        deadline = time.monotonic() + timeout
-        while not predicate():
-            if time.monotonic() > deadline:
-                return False
-            self.executor.spin_once(timeout_sec=poll)
-        return True
-
-    def wait_for_discovery(self, timeout=10.0):
-        """Spin until every publisher has matched every in-graph subscription of its topic."""
-        def matched():
-            return all(pub.get_subscription_count() >= self._subscribers.get(pub.topic_name, 0)
-                       for node in self.nodes for pub in node.publishers)
-        if not self.spin_until(matched, timeout, poll=0.01):
-            raise RuntimeError('in-process nodes did not discover each other')
-        # Count traffic from here on: what was sent before the nodes matched may never arrive.
-        self._instrument()
-        self._discovered = True
-
-    def settled(self, now_ns):
-        """Return whether every message sent was handled and every node's timers have run."""
-        if self._handled != self._sent:
-            return False
-        for node in self.nodes:
-            if node is self.clock_owner:
-                continue
-            if (node.get_parameter('use_sim_time').value
-                    and node.get_clock().now().nanoseconds != now_ns):
-                return False
-            for timer in node.timers:
-                if not timer.is_canceled():
-                    due = timer.time_until_next_call()
-                    if due is not None and due <= 0:
-                        return False
-        return True
-
-    # -- stepping -----------------------------------------------------------------------------
-
-    @property
-    def now_ns(self):
-        return self.clock_owner.now_ns()
-
-    @property
-    def step_ns(self):
-        return round(_NS / self.clock_owner.params.rate_hz)
-
-    def step(self, steps=1, timeout=10.0):
-        """Advance simulated time by whole steps, letting the graph settle after each."""
-        if not self._discovered:
-            self.wait_for_discovery()
-        for _ in range(steps):
-            self.clock_owner.step()
-            self.steps += 1
-            now_ns = self.clock_owner.now_ns()
-            if not self.spin_until(lambda: self.settled(now_ns), timeout):
-                raise RuntimeError(f'graph did not settle at t={now_ns / _NS:.3f} s')
-
-    def step_until(self, predicate, sim_timeout):
-        """Step until predicate() holds; raise after sim_timeout simulated seconds."""
-        end_ns = self.now_ns + round(sim_timeout * _NS)
-        while not predicate():
-            if self.now_ns >= end_ns:
-                raise RuntimeError('condition not reached in simulated time')
-            self.step()
-
-    def step_for(self, seconds):
-        """Step for a number of simulated seconds (rounded to whole steps)."""
-        self.step(round(seconds * _NS / self.step_ns))
-
-    def _instrument(self):
-        self._subscribers = {}
-        for node in self.nodes:
-            for sub in node.subscriptions:
-                topic = sub.topic_name
-                self._subscribers[topic] = self._subscribers.get(topic, 0) + 1
-                if not getattr(sub, '_lockstep_counted', False):
-                    sub.callback = self._counted_callback(sub.callback)
-                    sub._lockstep_counted = True
-            for pub in node.publishers:
-                if not getattr(pub, '_lockstep_counted', False):
-                    pub.publish = self._counted_publish(pub.publish, pub.topic_name)
-                    pub._lockstep_counted = True
-
-    def _counted_callback(self, callback):
-        def counted(msg):
-            self._handled += 1
-            callback(msg)
-        return counted
-
-    def _counted_publish(self, publish, topic):
-        def counted(msg):
-            self._sent += self._subscribers.get(topic, 0)
-            publish(msg)
-        return counted
-
-
 class Probe(Node):
     """Record odometry and send Twist commands, or play a script of them on sim-time ticks."""
 
-    def __init__(self, name='probe', odom_topic='odom', cmd_topic='cmd_vel', **kwargs):
+    def __init__(self, name='probe', odom_topic='odom', cmd_topic='cmd_vel', listen_only=False,
+                 record_commands=False, **kwargs):
         super().__init__(name, **kwargs)
         self.odoms = []
-        self.create_subscription(Odometry, odom_topic, self.odoms.append, 50)
-        # Without cmd_topic the probe only listens (a second cmd_vel publisher is a warning).
-        self.cmd_pub = self.create_publisher(Twist, cmd_topic, 10) if cmd_topic else None
+        self.odom_walls = []  # the monotonic wall time each odometry message arrived
+        self.commands = []  # with record_commands: (monotonic, time.time(), Twist) heard
+        self.create_subscription(Odometry, odom_topic, self._on_odom, 200)
+        # A listener only: a second publisher on cmd_vel would make the simulator warn.
+        self.cmd_pub = None if listen_only else self.create_publisher(Twist, cmd_topic, 10)
+        if record_commands:
+            self.create_subscription(Twist, cmd_topic, lambda msg: self.commands.append(
+                (time.monotonic(), time.time(), msg)), 200)
         self._script = []
         self._tick = None
         self.script_started_at = None
@@ -291,6 +155,14 @@ class Probe(Node):
         if not self._script:
             self.script_done_at = now
             self._tick.cancel()
+
+    def after(self, wall):
+        """Return the odometry messages that arrived at or after monotonic wall time wall."""
+        return [msg for received, msg in zip(self.odom_walls, self.odoms) if received >= wall]
+
+    def _on_odom(self, msg):
+        self.odom_walls.append(time.monotonic())
+        self.odoms.append(msg)
 
     def odom_after(self, t_ns):
         """Return the first odometry stamped at or after t_ns (sim time), or None."""
@@ -344,14 +216,14 @@ class SimGraph(Lockstep):
         sim = UnicycleSim(context=self.context, parameter_overrides=_overrides(params))
         self.add_clock_owner(sim) if lockstep else self.add(sim)
         if self._probe is None:
-            self._probe = self.probe(name='sim_graph_odom', cmd_topic=None)
+            self._probe = self.probe(name='sim_graph_odom', listen_only=True)
         return sim
 
-    def probe(self, name='probe', cmd_topic='cmd_vel', **params):
-        """Add a Probe on sim time (see Probe); it records odometry from the first message."""
-        params.setdefault('use_sim_time', True)
-        return self.add(Probe(name, cmd_topic=cmd_topic, context=self.context,
-                              parameter_overrides=_overrides(params)))
+    def probe(self, name='probe', namespace=None, use_sim_time=True, **kwargs):
+        """Add a Probe (see its arguments), on sim time unless use_sim_time is False."""
+        return self.add(Probe(name, namespace=namespace, context=self.context,
+                              parameter_overrides=_overrides({'use_sim_time': use_sim_time}),
+                              **kwargs))
 
     def pose(self):
         """Return (x, y, yaw) of the latest odometry the graph has seen."""
@@ -367,7 +239,7 @@ class SimGraph(Lockstep):
     def wait_for_odometry(self, timeout=20.0):
         """Spin (wall time) until odometry arrives, e.g. from a simulator process; return it."""
         if self._probe is None:
-            self._probe = self.probe(name='sim_graph_odom', cmd_topic=None)
+            self._probe = self.probe(name='sim_graph_odom', listen_only=True)
         if not self.spin_until(lambda: self._probe.odom is not None, timeout):
             raise RuntimeError(f'no odometry within {timeout} s: is a simulator running?')
         return self._probe.odom
@@ -394,39 +266,121 @@ def _overrides(params):
 # -- processes -------------------------------------------------------------------------------
 
 
-def ros_params(*params):
-    """Return the command-line arguments that set each 'name:=value' as a ROS parameter."""
-    return ['--ros-args', *[arg for param in params for arg in ('-p', param)]]
+def ros_params(*params, namespace=None, clock=None, sim_time=False):
+    """
+    Return the command-line arguments after the executable: each 'name:=value' as a parameter.
+
+    namespace puts the node there; clock remaps /clock (several simulators owning time side by
+    side need one each); sim_time adds use_sim_time:=true.
+    """
+    args = ['--ros-args']
+    if namespace:
+        args += ['-r', f'__ns:={namespace}']
+    if clock:
+        args += ['-r', f'/clock:={clock}']
+    params = (('use_sim_time:=true',) if sim_time else ()) + params
+    return args + [arg for param in params for arg in ('-p', param)]
 
 
-def start(executable, *args, stdin=subprocess.DEVNULL):
-    """Start an executable found on PATH; its output (stdout and stderr) goes to a pipe."""
+class Process:
+    """A started process; its output goes to a file, as a pipe could fill up and block it."""
+
+    def __init__(self, command, log_path=None, stdin=subprocess.DEVNULL, env=None):
+        self.command = command
+        self._temporary = log_path is None
+        if log_path is None:
+            fd, log_path = tempfile.mkstemp(prefix='sim_graph_', suffix='.log')
+            os.close(fd)
+        self.log_path = Path(log_path)
+        with open(self.log_path, 'w') as log:
+            self.popen = subprocess.Popen(
+                command, stdin=stdin, stdout=log, stderr=subprocess.STDOUT,
+                env=dict(os.environ if env is None else env), preexec_fn=_default_signals)
+        self.pid = self.popen.pid
+        self._final_output = None  # kept once stop() has removed a temporary log
+        self.signalled_at = None  # monotonic time of the last send()
+        self.exited_at = None  # monotonic time at which poll() or wait() first saw the exit
+
+    @property
+    def returncode(self):
+        return self.poll()
+
+    def poll(self):
+        code = self.popen.poll()
+        if code is not None and self.exited_at is None:
+            self.exited_at = time.monotonic()
+        return code
+
+    def wait(self, timeout=None):
+        """Wait for the exit (subprocess.TimeoutExpired after timeout); return the exit code."""
+        self.popen.wait(timeout)
+        return self.poll()
+
+    def send(self, signum):
+        self.signalled_at = time.monotonic()
+        self.popen.send_signal(signum)
+
+    def write(self, data):
+        """Write text or bytes to the process's stdin (started with stdin=subprocess.PIPE)."""
+        self.popen.stdin.write(data.encode() if isinstance(data, str) else data)
+        self.popen.stdin.flush()
+
+    def close_input(self):
+        """Close the process's stdin: it reads end of input after what was written."""
+        self.popen.stdin.close()
+
+    def output(self):
+        """Return everything the process has written so far (stdout and stderr)."""
+        if self._final_output is not None:
+            return self._final_output
+        return self.log_path.read_text(errors='replace')
+
+    def kill(self):
+        if self.popen.poll() is None:
+            self.popen.kill()
+            self.popen.wait()
+        self.poll()
+        if self.popen.stdin:
+            self.popen.stdin.close()
+
+    def describe(self):
+        """Return the command line and the output, for an assertion message."""
+        return f'$ {" ".join(str(arg) for arg in self.command[-12:])}\n{self.output()}'
+
+
+def start(executable, *args, stdin=subprocess.DEVNULL, log_path=None, env=None):
+    """Start an executable (a name on PATH, or a path) as a user would; return its Process."""
     path = shutil.which(executable)
     if path is None:
         raise FileNotFoundError(f'{executable} is not on PATH; install the package (make venv)')
-    return _popen([path, *args], stdin)
+    return Process([path, *args], log_path, stdin, env)
 
 
-def start_python(code):
+def start_python(code, log_path=None):
     """Start this Python interpreter on a piece of code (a load, a listener, ...)."""
-    return _popen([sys.executable, '-c', code], subprocess.DEVNULL)
+    return Process([sys.executable, '-c', code], log_path)
 
 
 def stop(process, signum=signal.SIGINT, timeout=5.0):
-    """Send signum unless the process has exited, kill it after timeout; return its output."""
+    """Send signum (Ctrl-C) unless it has exited, kill it after timeout; return its output."""
     if process.poll() is None:
-        process.send_signal(signum)
+        process.send(signum)
         try:
             process.wait(timeout)
         except subprocess.TimeoutExpired:
-            process.kill()
-            process.wait()
-    return process.stdout.read()
+            pass
+    process.kill()
+    output = process.output()
+    if process._temporary:
+        process._final_output = output
+        process.log_path.unlink(missing_ok=True)
+    return output
 
 
-def _popen(args, stdin):
-    return subprocess.Popen(args, stdin=stdin, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                            text=True, env=dict(os.environ))
+def _default_signals():
+    # A process started from a non-interactive shell's background job ignores SIGINT, and so
+    # would its children; a user's Ctrl-C reaches a process with the default handler.
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
 def closing_line(output):

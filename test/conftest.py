@@ -25,6 +25,7 @@ import os
 import pytest
 import rclpy
 from rclpy.context import Context
+from sim_diffdrive import harness
 from sim_diffdrive.harness import isolated_domain_id
 from sim_diffdrive.harness import SimGraph
 
@@ -51,3 +52,25 @@ def graph(ros_context):
         yield g
     finally:
         g.close()
+
+
+@pytest.fixture
+def procs(tmp_path):
+    """
+    Start processes as the tests need them; each returns a harness.Process.
+
+    ``procs(label, executable, *args, **kwargs)`` logs to tmp_path/<n>_<label>.log; whatever
+    still runs at the end is killed.
+    """
+    started = []
+
+    def start(label, executable, *args, **kwargs):
+        log_path = tmp_path / f'{len(started):02d}_{label}.log'
+        started.append(harness.start(executable, *args, log_path=log_path, **kwargs))
+        return started[-1]
+
+    try:
+        yield start
+    finally:
+        for process in started:
+            process.kill()

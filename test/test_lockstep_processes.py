@@ -114,7 +114,7 @@ def run_motion(graph, probe, executable, *params):
     """Run a motion on sim time to its end; return (exit code, output, final odometry pose)."""
     motion = start(executable, 'use_sim_time:=true', *params)
     assert graph.spin_until(lambda: motion.poll() is not None, 60.0), 'motion did not finish'
-    output = motion.stdout.read()
+    output = motion.output()
     # The stop reached the simulator before the motion exited; wait for odometry after it.
     stamp = stamp_s(probe.odom)
     assert graph.spin_until(lambda: stamp_s(probe.odom) > stamp + 0.1, 10.0)
@@ -146,7 +146,7 @@ def test_a_killed_participant_is_left_behind_and_a_late_one_is_waited_for(graph,
     circle = start('circle_back_and_forth', 'use_sim_time:=true')
     try:
         assert graph.spin_until(lambda: probe.odom.twist.twist.linear.x == 0.5, 30.0)
-        circle.send_signal(signal.SIGKILL)
+        circle.send(signal.SIGKILL)
         circle.wait()
         killed_at = stamp_s(probe.odom)
         # The clock goes on without it, and the cmd_vel timeout stops the robot.
@@ -175,7 +175,7 @@ def test_a_foreign_publisher_does_not_stall_the_clock(graph, simulator):
         motion = start('timed_out_and_back', 'use_sim_time:=true', 'goal_distance:=0.2',
                        'pause:=0.1')
         assert graph.spin_until(lambda: motion.poll() is not None, 60.0), 'clock stalled'
-        output = motion.stdout.read()
+        output = motion.output()
         assert motion.returncode == 0, output
     finally:
         flood.cancel()

@@ -28,6 +28,7 @@ from motion_challenges.odom_out_and_back import OdomOutAndBack
 from motion_challenges.rotate_robot import RotateRobot
 from motion_challenges.timed_out_and_back import TimedOutAndBack
 import pytest
+from sim_diffdrive.harness import ros_params
 from sim_diffdrive.sim_node import UnicycleSim
 import yaml
 
@@ -80,24 +81,16 @@ def test_params_file_matches_the_node(ros_context, name):
             assert value == defaults[key], f'{key} is not the default'
 
 
-def test_executable_runs_from_its_params_file():
-    sim = subprocess.Popen(
-        ['unicycle_sim', '--ros-args', '-p', 'publish_clock:=true',
-         '-p', 'real_time_factor:=5.0'],
-        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    motion = None
+def test_executable_runs_from_its_params_file(procs):
+    sim = procs('sim', 'unicycle_sim',
+                *ros_params('publish_clock:=true', 'real_time_factor:=50.0'))
+    motion = procs('motion', 'timed_out_and_back', '--ros-args', '--params-file',
+                   str(CONFIG / 'timed_out_and_back.yaml'), '-p', 'use_sim_time:=true',
+                   '-p', 'goal_distance:=0.2', '-p', 'pause:=0.2')
+    # About 9 s of simulated driving, in lockstep with the simulator: well under 8 s of wall time.
     try:
-        motion = subprocess.Popen(
-            ['timed_out_and_back', '--ros-args',
-             '--params-file', str(CONFIG / 'timed_out_and_back.yaml'),
-             '-p', 'use_sim_time:=true', '-p', 'goal_distance:=0.2', '-p', 'pause:=0.2'],
-            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-        # About 9 s of simulated driving, under 2 s of wall time at 5x.
-        output, _ = motion.communicate(timeout=8.0)
-        assert motion.returncode == 0, output
-        assert 'Done' in output, output
-    finally:
-        for process in (motion, sim):
-            if process is not None and process.poll() is None:
-                process.kill()
-                process.wait()
+        code = motion.wait(8.0)
+    except subprocess.TimeoutExpired:
+        code = None
+    assert code == 0, motion.describe() + sim.describe()
+    assert 'Done' in motion.output(), motion.describe()

@@ -20,11 +20,8 @@ step it was meant for only while the graph keeps up: turns are checked within 0.
 exactly in test_sim_graph.py.
 """
 
-import os
-import shutil
 import signal
 import subprocess
-import sys
 
 import pytest
 from sim_diffdrive.harness import angle_error
@@ -34,57 +31,19 @@ NS = 1_000_000_000
 SIM_ARGS = ('--ros-args', '-p', 'publish_clock:=true', '-p', 'real_time_factor:=5.0')
 
 
-def sim_command(*args):
-    """Return the command line of the installed executable (or of its main() otherwise)."""
-    path = shutil.which('unicycle_sim')
-    if path:
-        return [path, *args]
-    return [sys.executable, '-c',
-            'import sys; from sim_diffdrive.sim_node import main; sys.exit(main())', *args]
-
-
-class SimProcess:
-    """A unicycle_sim process whose output goes to a file (a pipe could fill up and block it)."""
-
-    def __init__(self, log_path, *args):
-        self.log_path = log_path
-        with open(log_path, 'w') as log:
-            self.process = subprocess.Popen(
-                sim_command(*args), stdin=subprocess.DEVNULL, stdout=log,
-                stderr=subprocess.STDOUT, env=dict(os.environ))
-
-    def output(self):
-        return self.log_path.read_text()
-
-    def stop(self, signum, timeout=5.0):
-        """Send signum and return the exit code; fail if the process does not exit in time."""
-        self.process.send_signal(signum)
-        try:
-            return self.process.wait(timeout)
-        except subprocess.TimeoutExpired:
-            pytest.fail(f'unicycle_sim still running {timeout} s after signal {signum}')
-
-    def kill(self):
-        if self.process.poll() is None:
-            self.process.kill()
-            self.process.wait()
-
-
 @pytest.fixture
-def start_sim(tmp_path):
+def start_sim(procs):
     """Start unicycle_sim with the given arguments; whatever still runs is killed afterwards."""
-    started = []
+    return lambda *args: procs('unicycle_sim', 'unicycle_sim', *args)
 
-    def start(*args):
-        sim = SimProcess(tmp_path / f'unicycle_sim_{len(started)}.log', *args)
-        started.append(sim)
-        return sim
 
+def stop_with(sim, signum, timeout=5.0):
+    """Send signum and return the exit code; fail if the process does not exit in time."""
+    sim.send(signum)
     try:
-        yield start
-    finally:
-        for sim in started:
-            sim.kill()
+        return sim.wait(timeout)
+    except subprocess.TimeoutExpired:
+        pytest.fail(f'unicycle_sim still running {timeout} s after signal {signum}')
 
 
 def stamp_ns(odom):
@@ -114,7 +73,7 @@ def test_turns_on_command_and_exits_cleanly_on_sigint(graph, start_sim):
     assert angle_error(yaw, 1.5) < 0.05
     assert (odom.twist.twist.linear.x, odom.twist.twist.angular.z) == (0.0, 0.0)
 
-    assert sim.stop(signal.SIGINT) == 0
+    assert stop_with(sim, signal.SIGINT) == 0
     output = sim.output()
     assert 'Traceback' not in output
     assert 'publishing /clock at up to 5x real time in lockstep' in output
@@ -124,14 +83,14 @@ def test_exits_cleanly_on_sigterm(graph, start_sim):
     sim = start_sim(*SIM_ARGS)
     probe = graph.probe()
     wait_for_odometry(graph, probe, sim)
-    assert sim.stop(signal.SIGTERM) == 0
+    assert stop_with(sim, signal.SIGTERM) == 0
     assert 'Traceback' not in sim.output()
 
 
 def test_bad_parameter_exits_with_usage_code_naming_it(start_sim):
     sim = start_sim('--ros-args', '-p', 'rate_hz:=-5.0')
     try:
-        code = sim.process.wait(20.0)
+        code = sim.wait(20.0)
     except subprocess.TimeoutExpired:
         pytest.fail('unicycle_sim kept running with rate_hz:=-5.0')
     output = sim.output()

@@ -1,0 +1,394 @@
+# Copyright 2026 motion_challenges contributors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+A motion interrupted as a user meets it: killed, Ctrl-C, SIGTERM, its simulator restarted.
+
+Ctrl-C and SIGTERM come at every phase; the simulator is killed and restarted under a closed
+loop.
+
+Several scenarios run at once, each in its own ROS namespace with its own simulator, and with
+``/clock`` remapped into that namespace, so that one simulator's time never drives another's
+motion.  A probe per namespace records odometry (and cmd_vel where it matters) with the wall
+time it arrived.  Phases are recognised from odometry and from the motion's log.
+"""
+
+from dataclasses import dataclass
+import math
+import os
+import signal
+import subprocess
+import time
+
+from sim_diffdrive.harness import is_moving as moving
+from sim_diffdrive.harness import pose_of
+from sim_diffdrive.harness import ros_params
+from sim_diffdrive.harness import stamp_s
+from sim_diffdrive.harness import twist_of as twist
+from sim_diffdrive.sim_node import UnicycleSim
+
+# Simulated seconds per wall second, and simulator steps per simulated second: a step every
+# 10 ms of wall time keeps several simulators and motions within two cores.
+REAL_TIME_FACTOR = 4.0
+SIM_RATE_HZ = 25.0
+SIM_CLOCK = ('publish_clock:=true', f'real_time_factor:={REAL_TIME_FACTOR}',
+             f'rate_hz:={SIM_RATE_HZ}')
+# Only the motion's own last Twist may stop the robot in the interrupt tests.
+KEEP_LAST_COMMAND = 'cmd_vel_timeout:=0.0'
+ROTATE = ('angular_speed_deg:=60.0', 'angle_deg:=36000.0', 'clockwise:=true')
+_PREFIX = f'/interrupts_{os.getpid()}'
+
+
+def ros_args(namespace, *params, sim_time=False):
+    """Return --ros-args putting a node in namespace, with its /clock there too."""
+    return ros_params(*params, namespace=namespace, clock=f'{namespace}/clock',
+                      sim_time=sim_time)
+
+
+def watch(graph, namespace, **kwargs):
+    """Add a listening probe in namespace (wall time; arrival times recorded)."""
+    kwargs.setdefault('name', 'fault_watcher')
+    return graph.probe(namespace=namespace, use_sim_time=False, listen_only=True, **kwargs)
+
+
+def odoms_with_walls(watcher):
+    return list(zip(watcher.odom_walls, watcher.odoms))
+
+
+def wait_all(graph, procs, timeout):
+    """Spin until every process has exited; return the ones still running."""
+    graph.spin_until(lambda: all(p.poll() is not None for p in procs), timeout, poll=0.01)
+    return [p for p in procs if p.poll() is None]
+
+
+def check_stopped(watcher, motion, problems, label):
+    """Check that odometry from 0.1 s after the motion exited on shows the robot at rest."""
+    later = watcher.after(motion.exited_at + 0.1)
+    if len(later) < 10:
+        problems.append(f'{label}: no odometry after the exit')
+    elif any(moving(o) for o in later) or len({pose_of(o) for o in later}) != 1:
+        problems.append(f'{label}: the robot kept moving after the exit, twist '
+                        f'{twist(later[-1])}')
+
+
+def check_clean_interrupt(proc, problems, label):
+    output = proc.output()
+    if proc.poll() != 0:
+        problems.append(f'{label}: exit code {proc.poll()}, expected 0\n{proc.describe()}')
+    if 'Traceback' in output or 'Exception in' in output:
+        problems.append(f'{label}: not a clean exit\n{proc.describe()}')
+    if 'Interrupted by the user' not in output:
+        problems.append(f'{label}: no "Interrupted by the user"\n{proc.describe()}')
+    if proc.exited_at - proc.signalled_at > 3.0:
+        problems.append(f'{label}: exit took {proc.exited_at - proc.signalled_at:.1f} s')
+
+
+# -- SIGKILL of the controller -----------------------------------------------------------------
+
+
+def test_killed_controller_is_stopped_by_the_simulator_timeout(graph, procs):
+    # One controller drives two simulators on the same cmd_vel (wall time, 50 Hz odometry):
+    # one with a 0.3 s timeout, one with the timeout off (odometry remapped beside it).
+    namespace = f'{_PREFIX}_sigkill'
+    timeout_s, period_s = 0.3, 1.0 / 50.0
+    timed = procs('sim_timeout', 'unicycle_sim', *ros_args(
+        namespace, f'cmd_vel_timeout:={timeout_s}'))
+    keeping = procs('sim_keep', 'unicycle_sim', *ros_args(
+        namespace, KEEP_LAST_COMMAND), '-r', 'odom:=odom_keep')
+    watcher = watch(graph, namespace, record_commands=True)
+    keeper = watch(graph, namespace, odom_topic='odom_keep', name='fault_watcher_keep')
+    controller = procs('controller', 'circle_back_and_forth', *ros_args(
+        namespace, 'half_period:=100.0'))
+    assert graph.spin_until(
+        lambda: moving(watcher.odom) and moving(keeper.odom) and len(watcher.commands) > 3,
+        20.0), controller.describe() + timed.describe()
+
+    controller.send(signal.SIGKILL)
+    killed = time.monotonic()
+    graph.spin_for(timeout_s + 0.7)
+    assert controller.poll() == -signal.SIGKILL
+
+    last_command_s = watcher.commands[-1][1]
+    assert twist(watcher.odom) == (0.0, 0.0), timed.describe()
+    last_moving = [o for o in watcher.odoms if moving(o)][-1]
+    first_stopped = next(o for o in watcher.odoms
+                         if stamp_s(o) > stamp_s(last_moving))
+    late_s = stamp_s(last_moving) - last_command_s
+    assert late_s <= timeout_s + period_s, (
+        f'odometry shows the robot moving {late_s:.3f} s after the last cmd_vel')
+    assert stamp_s(first_stopped) - last_command_s <= timeout_s + 2 * period_s + 0.05
+    assert not any(moving(o) for o in watcher.after(killed + timeout_s + 0.2))
+    assert f'No cmd_vel for {timeout_s:g} s: stopping the robot' in timed.output()
+
+    # With the timeout off, the last command is kept, as documented.
+    kept = keeper.after(killed + timeout_s + 0.2)
+    assert kept and all(twist(o) == (0.5, 0.5) for o in kept)
+    assert 'No cmd_vel' not in keeping.output()
+
+
+# -- Ctrl-C and SIGTERM at every phase ---------------------------------------------------------
+
+MOTIONS = {
+    'rotate_robot': ('rotate_robot', ROTATE),
+    'rotate_robot mode:=odom': ('rotate_robot', ROTATE + ('mode:=odom',)),
+    'circle_back_and_forth': ('circle_back_and_forth', ()),
+    'timed_out_and_back': ('timed_out_and_back', ()),
+    'odom_out_and_back': ('odom_out_and_back', ()),
+}
+# Out-and-back legs short enough to reach the pause soon, and a pause long enough to see.
+PAUSE = ('goal_distance:=0.2', 'pause:=4.0')
+
+
+@dataclass
+class Interruption:
+    """One motion process, interrupted by signum once it is in phase."""
+
+    motion: str
+    phase: str  # waiting (for a cmd_vel subscriber), typed (input), segment or pause
+    signum: int
+    proc: object = None  # its harness.Process once started
+    started_at: float = None
+
+    @property
+    def label(self):
+        return f'{self.motion} {signal.Signals(self.signum).name} in {self.phase}'
+
+    def args(self):
+        name, params = MOTIONS[self.motion]
+        if self.phase == 'typed':
+            params = tuple(p for p in params if p.startswith('mode:='))
+        if self.phase == 'pause':
+            params += PAUSE
+        return name, params
+
+
+@dataclass
+class Robot:
+    """A namespace with its simulator (or none), a watcher, and one motion to interrupt."""
+
+    name: str
+    run: Interruption
+    sim: str = 'process'  # 'process' (sim time, its own /clock), 'in-process' (wall), or ''
+    watcher: object = None  # its Probe
+    checked: bool = False
+
+
+def reached(run, robot):
+    """Return whether run's motion is in the phase it is to be interrupted in."""
+    if run.phase == 'waiting':
+        return 'Waiting for a subscriber' in run.proc.output()
+    if run.phase == 'typed':
+        return 'Enter desired angle (degrees): ' in run.proc.output()
+    recent = [o for received, o in odoms_with_walls(robot.watcher)[-4:]
+              if received > run.started_at]
+    if len(recent) < 4:
+        return False
+    if run.phase == 'segment':
+        return all(moving(o) for o in recent)
+    # pause: the motion has moved the robot, and it has been at rest for the last few steps.
+    moved = any(moving(o) for o in robot.watcher.after(run.started_at))
+    return moved and not any(moving(o) for o in recent)
+
+
+def interrupt_all(graph, procs, robots, timeout=40.0):
+    """Start every robot's simulator and motion, interrupt each in its phase, check the ends."""
+    for robot in robots:
+        namespace = f'{_PREFIX}_{robot.name}'
+        if robot.sim == 'process':
+            procs(f'{robot.name}_sim', 'unicycle_sim', *ros_args(
+                namespace, *SIM_CLOCK, KEEP_LAST_COMMAND))
+        elif robot.sim == 'in-process':
+            graph.add(UnicycleSim(namespace=namespace, context=graph.context,
+                                  cli_args=ros_args(namespace, KEEP_LAST_COMMAND)))
+        if robot.sim:
+            robot.watcher = watch(graph, namespace, record_commands=robot.sim == 'in-process')
+    for robot in robots:
+        run = robot.run
+        name, params = run.args()
+        typed = run.phase == 'typed'
+        run.proc = procs(f'{robot.name}_{run.phase}', name, *ros_args(
+            f'{_PREFIX}_{robot.name}', *params, sim_time=robot.sim == 'process'),
+            stdin=subprocess.PIPE if typed else subprocess.DEVNULL)
+        run.started_at = time.monotonic()
+        if typed:
+            # Answer the first question and leave the pipe open: it waits for the second.
+            run.proc.write('60\n')
+    problems = []
+
+    def step():
+        for robot in robots:
+            run = robot.run
+            if robot.checked:
+                continue
+            if run.proc.signalled_at is None and reached(run, robot):
+                run.proc.send(run.signum)
+            elif run.proc.poll() is not None and (
+                    not robot.sim or run.proc.signalled_at is None or settled(robot, run)):
+                robot.checked = True
+                check_run(robot, run, problems)
+        return all(robot.checked for robot in robots)
+
+    finished = graph.spin_until(step, timeout, poll=0.01)
+    for robot in robots:
+        if not robot.checked:
+            problems.append(f'{robot.run.label}: never got there, or never exited\n'
+                            + robot.run.proc.describe())
+    assert finished and not problems, '\n\n'.join(problems)
+
+
+def settled(robot, run):
+    """Return whether odometry from 0.1 s after run's exit on has arrived (or never will)."""
+    since = run.proc.exited_at + 0.1
+    return (len(robot.watcher.after(since)) >= 10
+            or time.monotonic() > run.proc.exited_at + 5.0)
+
+
+def check_run(robot, run, problems):
+    if run.proc.signalled_at is None:
+        problems.append(f'{run.label}: exited before the phase was reached\n'
+                        + run.proc.describe())
+        return
+    check_clean_interrupt(run.proc, problems, run.label)
+    if robot.sim:
+        check_stopped(robot.watcher, run.proc, problems, run.label)
+
+
+def test_interrupt_while_waiting_for_the_robot_or_for_typed_input(graph, procs):
+    # Each signal meets each phase and each motion (in this test or the next); the signal
+    # path is one for all motions, so not every pair is run.
+    runs = [('rotate_robot', signal.SIGTERM), ('rotate_robot mode:=odom', signal.SIGINT),
+            ('circle_back_and_forth', signal.SIGTERM), ('timed_out_and_back', signal.SIGINT),
+            ('odom_out_and_back', signal.SIGTERM)]
+    robots = [Robot(f'waiting_{i}', Interruption(motion, 'waiting', signum), sim='')
+              for i, (motion, signum) in enumerate(runs)]
+    robots += [
+        Robot('typed_0', Interruption('rotate_robot', 'typed', signal.SIGINT), sim='in-process'),
+        Robot('typed_1', Interruption('rotate_robot mode:=odom', 'typed', signal.SIGTERM),
+              sim='in-process'),
+    ]
+    interrupt_all(graph, procs, robots)
+    for robot in robots[-2:]:
+        # Nothing but the final zero Twist was sent, and the robot never moved.
+        assert all(command_of(m) == (0.0, 0.0) for _, _, m in robot.watcher.commands)
+        assert robot.watcher.odoms
+        assert all(not moving(o) and pose_of(o) == (0.0, 0.0, 0.0)
+                   for o in robot.watcher.odoms)
+
+
+def test_interrupt_mid_segment_and_during_a_pause(graph, procs):
+    robots = [
+        Robot('rotate_int', Interruption('rotate_robot', 'segment', signal.SIGINT)),
+        Robot('rotate_term', Interruption('rotate_robot', 'segment', signal.SIGTERM)),
+        Robot('rotate_odom', Interruption('rotate_robot mode:=odom', 'segment', signal.SIGTERM)),
+        Robot('circle', Interruption('circle_back_and_forth', 'segment', signal.SIGINT)),
+        Robot('timed', Interruption('timed_out_and_back', 'segment', signal.SIGTERM)),
+        Robot('timed_pause', Interruption('timed_out_and_back', 'pause', signal.SIGINT)),
+        Robot('odom', Interruption('odom_out_and_back', 'segment', signal.SIGINT)),
+        Robot('odom_pause', Interruption('odom_out_and_back', 'pause', signal.SIGTERM)),
+    ]
+    interrupt_all(graph, procs, robots)
+
+
+def command_of(msg):
+    return msg.linear.x, msg.angular.z
+
+
+# -- the simulator restarted under a closed-loop motion ----------------------------------------
+
+@dataclass
+class Restart:
+    """A closed-loop motion whose simulator is killed mid-motion, and restarted (or not)."""
+
+    name: str
+    motion: str
+    sim_time: bool
+    restart: bool = True
+    expected: tuple = ()
+    motion_proc: object = None  # harness.Process
+    sim_proc: object = None
+    new_sim: object = None
+    watcher: object = None  # Probe
+    killed_at: float = None
+
+    def far_enough(self):
+        """Return whether the robot is well into the motion (so a restart moves the pose)."""
+        odom = self.watcher.odom
+        if not moving(odom):
+            return False
+        if self.motion == 'odom_out_and_back':
+            return odom.pose.pose.position.x > 0.2
+        return abs(pose_of(odom)[2]) > math.radians(30.0)
+
+
+# What the motion may notice first: the pose jumping back to the start, time going back, or the
+# new simulator's odometry publisher beside the crashed one's (still in discovery).
+WALL_RESTART = ('Odometry jumped', 'publishers on')
+SIM_RESTART = ('went back', 'Odometry jumped', 'publishers on')
+
+
+def test_simulator_restarted_mid_motion_is_noticed(graph, procs):
+    cases = [
+        # Each motion meets one clock: the pairs that a pose check alone used to miss (a turn
+        # that the new simulator has partly redone; a drive that its clock has caught up with).
+        Restart('restart_rotate_wall', 'rotate_robot mode:=odom', False, expected=WALL_RESTART),
+        Restart('restart_oob_sim', 'odom_out_and_back', True, expected=SIM_RESTART),
+        # No restart: the gap in odometry is what tells.
+        Restart('gone_rotate_sim', 'rotate_robot mode:=odom', True, restart=False,
+                expected=('No odometry for',)),
+    ]
+
+    def sim_command(case):
+        namespace = f'{_PREFIX}_{case.name}'
+        clock = SIM_CLOCK if case.sim_time else ()
+        return 'unicycle_sim', *ros_args(namespace, *clock, KEEP_LAST_COMMAND)
+
+    for case in cases:
+        namespace = f'{_PREFIX}_{case.name}'
+        case.sim_proc = procs(f'{case.name}_sim', *sim_command(case))
+        case.watcher = watch(graph, namespace)
+        name, params = MOTIONS[case.motion]
+        # A restart is told by the odometry it sends, not by a gap: the gap check (odom_timeout)
+        # is what the case without a restart shows.
+        timeout = () if not case.restart else ('odom_timeout:=30.0',)
+        case.motion_proc = procs(f'{case.name}_motion', name, *ros_args(
+            namespace, *params, *timeout, sim_time=case.sim_time))
+
+    def step():
+        for case in cases:
+            if case.killed_at is None and case.far_enough():
+                case.sim_proc.send(signal.SIGKILL)
+                case.sim_proc.wait()
+                case.killed_at = time.monotonic()
+                if case.restart:
+                    case.new_sim = procs(f'{case.name}_new_sim', *sim_command(case))
+        return all(case.motion_proc.poll() is not None for case in cases)
+
+    finished = graph.spin_until(step, 30.0, poll=0.01)
+    problems = []
+    for case in cases:
+        proc = case.motion_proc
+        output = proc.output()
+        if proc.poll() is None:
+            problems.append(f'{case.name}: did not notice\n{proc.describe()}')
+            continue
+        if (proc.poll() != 1 or not any(text in output for text in case.expected)
+                or 'Traceback' in output):
+            problems.append(f'{case.name}: exit code {proc.poll()}, expected 1 and one of '
+                            f'{case.expected}\n{proc.describe()}')
+        if case.restart:
+            settle = time.monotonic()
+            graph.spin_until(lambda: len(case.watcher.after(proc.exited_at + 0.1)) >= 10
+                             or time.monotonic() > settle + 5.0, 6.0, poll=0.01)
+            check_stopped(case.watcher, proc, problems, case.name)
+    assert finished and not problems, '\n\n'.join(problems)
