@@ -110,7 +110,11 @@ BAD_PARAMETERS = (
     ('timed_out_and_back', 'linear_speed:=-0.2', "parameter 'linear_speed' must be in"),
     ('odom_out_and_back', 'goal_distance:=far', "parameter 'goal_distance' must be a number"),
     ('odom_out_and_back', 'angular_speed:=-1.0', "parameter 'angular_speed' must be in"),
-)
+) + tuple(
+    # Every motion shares rate_hz, with an open lower bound.
+    (name, 'rate_hz:=-1.0', "parameter 'rate_hz' must be in (0.0, 1000.0]; got -1.0")
+    for name in ('rotate_robot', 'circle_back_and_forth', 'timed_out_and_back',
+                 'odom_out_and_back'))
 
 
 def test_bad_parameters_are_refused_by_name_for_every_executable(procs, tmp_path):
