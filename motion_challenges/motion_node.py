@@ -20,6 +20,9 @@ it needs it), then runs on a timer on the node clock, so it works on wall time a
 time alike, and finishes by publishing a zero Twist and one closing line that compares the goal
 with what odometry says was achieved.  ``shutdown_hook`` (called by runtime.run on every exit
 path) publishes the zero Twist again, so Ctrl-C or SIGTERM mid-motion stops the robot.
+
+The laws themselves are plain code: the closed loops, the lag compensation (CommandLog) and the
+odometry checks in controllers.py, the open-loop plans in plans.py (see timed_motion.py).
 """
 
 import enum
@@ -223,8 +226,7 @@ class MotionNode(Node):
         if self.needs_odom and self.state == MotionState.RUNNING and self.odom is not None:
             fault = odometry_fault(self.odom, odom, self.commands)
             if fault:
-                self.finish(EXIT_FAILED, f'{fault}; stopped the robot rather than drive on '
-                                         'odometry that cannot be trusted (simulator restarted?)')
+                self._distrust(fault)
                 return
         self.odom = odom
         self.turned.update(odom.yaw)
@@ -236,10 +238,11 @@ class MotionNode(Node):
     def _on_time_jump(self, jump):
         self._early_odoms.clear()
         if self.needs_odom and self.state == MotionState.RUNNING:
-            back_s = -jump.delta.nanoseconds / _NS
-            self.finish(EXIT_FAILED, f'Simulated time went back {back_s:.3f} s; stopped the '
-                                     'robot rather than drive on odometry that cannot be '
-                                     'trusted (simulator restarted?)')
+            self._distrust(f'Simulated time went back {-jump.delta.nanoseconds / _NS:.3f} s')
+
+    def _distrust(self, why):
+        self.finish(EXIT_FAILED, f'{why}; stopped the robot rather than drive on odometry that '
+                                 'cannot be trusted (simulator restarted?)')
 
     def _missing(self):
         """Return what the motion still waits for, or '' when it can start."""
@@ -258,28 +261,29 @@ class MotionNode(Node):
 
     def _on_watchdog(self):
         if self.needs_odom and self.state == MotionState.RUNNING:
-            publishers = self.count_publishers(self._odom_topic)
-            if publishers != 1:
-                # A simulator restarted after a crash shows up beside its predecessor (gone
-                # for good, but still in discovery for a while): its odometry can look
-                # continuous when its clock or pose happens to have caught up with the last.
-                self.finish(EXIT_FAILED, f'{publishers} publishers on {self._odom_topic} '
-                                         'mid-motion; stopped the robot rather than drive on '
-                                         'odometry that cannot be trusted (simulator '
-                                         'restarted?)')
-                return
-            last_sign = self._odom_wall
-            if self.lockstep is not None and self.lockstep.roster_wall is not None:
-                # In lockstep the simulator repeats its roster while it holds the clock for a
-                # slow or joining node: odometry is late then because time stands still.
-                last_sign = max(last_sign, self.lockstep.roster_wall)
-            silent = time.monotonic() - last_sign
-            if silent > self.params.odom_timeout:
-                self.finish(EXIT_FAILED, f'No odometry for {silent:.1f} s mid-motion; stopped '
-                                         'the robot (is the simulator still running?)')
+            self._watch_odometry()
+        elif self._ready and self.state == MotionState.WAITING:
+            self._watch_start()
+
+    def _watch_odometry(self):
+        publishers = self.count_publishers(self._odom_topic)
+        if publishers != 1:
+            # A simulator restarted after a crash shows up beside its predecessor (gone for
+            # good, but still in discovery for a while): its odometry can look continuous when
+            # its clock or pose happens to have caught up with the last.
+            self._distrust(f'{publishers} publishers on {self._odom_topic} mid-motion')
             return
-        if not self._ready or self.state != MotionState.WAITING:
-            return
+        last_sign = self._odom_wall
+        if self.lockstep is not None and self.lockstep.roster_wall is not None:
+            # In lockstep the simulator repeats its roster while it holds the clock for a slow
+            # or joining node: odometry is late then because time stands still.
+            last_sign = max(last_sign, self.lockstep.roster_wall)
+        silent = time.monotonic() - last_sign
+        if silent > self.params.odom_timeout:
+            self.finish(EXIT_FAILED, f'No odometry for {silent:.1f} s mid-motion; stopped '
+                                     'the robot (is the simulator still running?)')
+
+    def _watch_start(self):
         missing = self._missing()
         if not missing and self.get_parameter('use_sim_time').value and self.now_ns() == 0:
             missing = 'simulated time on /clock (use_sim_time is true)'
