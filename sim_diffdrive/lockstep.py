@@ -68,10 +68,13 @@ class Lockstep:
         node.destroy_node()
         self._instrument()
 
+        if not self.nodes:
+            return
+
         # A destroyed publisher leaves the graph a little later: wait, so that the next node on
         # its topic is not taken for a second publisher.
         def forgotten():
-            return all(self.clock_owner.count_publishers(topic) <= sum(
+            return all(self.nodes[0].count_publishers(topic) <= sum(
                 pub.topic_name == topic for n in self.nodes for pub in n.publishers)
                 for topic in topics)
         self.spin_until(forgotten, 10.0, poll=0.005)

@@ -17,9 +17,10 @@ Run every motion against the simulator, as separate processes over DDS, and prin
 
 For each motion in turn this starts a fresh ``unicycle_sim`` that owns time (``publish_clock``,
 ``real_time_factor`` = --rtf) and the motion's executable with ``use_sim_time`` and all its
-answers given as parameters, so nothing prompts.  An observer node in this process records
-``odom``; once the motion process has exited, the robot's resting pose is compared with the
-analytic goal (rotations: start yaw - 90 deg; the others: back at the start pose).
+answers given as parameters, so nothing prompts (started and stopped by sim_diffdrive.harness).
+A probe in this process records ``odom``; once the motion process has exited, the robot's
+resting pose is compared with the analytic goal (rotations: start yaw - 90 deg; the others:
+back at the start pose).
 
 The table shows goal, achieved pose, error (mm, deg), and the simulated and wall seconds from
 the robot's first to its last movement (their ratio is the real-time factor the processes
@@ -28,31 +29,29 @@ motion's answer to every clock step), so --rtf is only an upper bound and every 
 on a loaded machine too.  The exit code is 1 when a motion process failed or timed out, 0
 otherwise.
 
-The demo runs on its own ROS domain (random in 1..100, or MOTION_DEMO_DOMAIN_ID) with
+The demo runs on its own ROS domain (random in 1..100, or SIM_GRAPH_DOMAIN_ID) with
 localhost-only discovery, so it never drives anyone else's robot.  Usage:
 ``python tools/demo.py [--rtf 50]`` with the venv active (``make demo``).
 """
 
 import argparse
+from collections import namedtuple
 from dataclasses import dataclass
 import math
 import os
 from pathlib import Path
-import random
 import shutil
-import signal
-import subprocess
 import sys
 import tempfile
 import time
 
-from motion_challenges.motion_node import OdomPose
-from nav_msgs.msg import Odometry
-import rclpy
-from rclpy.context import Context
-from rclpy.executors import SingleThreadedExecutor
-from rclpy.node import Node
-from rclpy.parameter import Parameter
+from sim_diffdrive import harness
+from sim_diffdrive.harness import is_moving
+from sim_diffdrive.harness import pose_of
+from sim_diffdrive.harness import SimGraph
+from sim_diffdrive.harness import stamp_s
+
+Pose = namedtuple('Pose', 'x y yaw')
 
 
 @dataclass(frozen=True)
@@ -80,80 +79,15 @@ MOTIONS = (
 _START_ALLOWANCE = 15.0
 
 
-class Observer(Node):
-    """Record the robot's first and latest pose, and when it started and stopped moving."""
-
-    def __init__(self, context):
-        super().__init__('demo_observer', context=context,
-                         parameter_overrides=[Parameter('use_sim_time', value=True)])
-        self.first = None
-        self.latest = None
-        self.trajectory = []
-        self.count = 0
-        self.moving = False
-        self.move_start = None  # (sim s, wall s) of the last odometry at rest before moving
-        self.move_end = None  # (sim s, wall s) of the first odometry at rest after moving
-        self._at_rest = None
-        self.create_subscription(Odometry, 'odom', self._on_odom, 50)
-
-    def _on_odom(self, msg):
-        pose = OdomPose(msg)
-        self.first = self.first or pose
-        self.latest = pose
-        self.trajectory.append((pose.x, pose.y, pose.yaw))
-        self.count += 1
-        sample = (msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9, time.monotonic())
-        self.moving = bool(msg.twist.twist.linear.x or msg.twist.twist.angular.z)
-        if self.moving:
-            if self.move_start is None:
-                self.move_start = self._at_rest or sample
-            self.move_end = None
-        else:
-            self._at_rest = sample
-            if self.move_start is not None and self.move_end is None:
-                self.move_end = sample
-
-
 @dataclass
 class Result:
     motion: Motion
     exit_code: object  # int, or 'timeout'
-    start: OdomPose = None
-    end: OdomPose = None
+    start: Pose = None
+    end: Pose = None
     sim_s: float = None
     wall_s: float = None
     trajectory: list = None
-
-
-def spin_until(executor, predicate, timeout):
-    """Spin until predicate() is true; return whether it became true within timeout [s]."""
-    deadline = time.monotonic() + timeout
-    while not predicate():
-        if time.monotonic() > deadline:
-            return False
-        executor.spin_once(timeout_sec=0.02)
-    return True
-
-
-def stop(process):
-    """Interrupt a child like Ctrl-C would (so a motion stops its robot), then kill it."""
-    if process is None or process.poll() is not None:
-        return
-    process.send_signal(signal.SIGINT)
-    try:
-        process.wait(timeout=3.0)
-    except subprocess.TimeoutExpired:
-        process.kill()
-        process.wait()
-
-
-def launch(executable, params, log_path):
-    """Start an executable with -p parameters, its output going to log_path."""
-    args = [executable, '--ros-args']
-    for name_value in params:
-        args += ['-p', name_value]
-    with open(log_path, 'w') as log:
-        return subprocess.Popen(args, stdout=log, stderr=subprocess.STDOUT)
 
 
 def print_tail(what, log_path, lines=8):
@@ -162,45 +96,63 @@ def print_tail(what, log_path, lines=8):
         print('    ' + line)
 
 
-def run_motion(motion, context, rtf, log_dir):
-    """Run one motion against a fresh simulator and return what the observer measured."""
-    observer = Observer(context)
-    executor = SingleThreadedExecutor(context=context)
-    executor.add_node(observer)
+def movement(probe):
+    """
+    Return ((sim s, wall s) at rest before the robot moved, (sim s, wall s) at rest after).
+
+    None where odometry does not show it: the robot never moved, or never came to rest.
+    """
+    samples = list(zip(probe.odoms, probe.odom_walls))
+    moving = [i for i, (odom, _) in enumerate(samples) if is_moving(odom)]
+    if not moving:
+        return None, None
+    first, last = moving[0], moving[-1]
+    start = samples[first - 1] if first > 0 else samples[first]
+    end = samples[last + 1] if last + 1 < len(samples) else None
+    return ((stamp_s(start[0]), start[1]),
+            (stamp_s(end[0]), end[1]) if end else None)
+
+
+def run_motion(motion, graph, rtf, log_dir):
+    """Run one motion against a fresh simulator and return what odometry showed."""
+    probe = graph.probe('demo_observer', listen_only=True)
     sim_log = Path(log_dir) / 'unicycle_sim.log'
     motion_log = Path(log_dir) / f'{motion.executable}.log'
     sim = process = None
     try:
-        sim = launch('unicycle_sim', ('publish_clock:=true', f'real_time_factor:={rtf}'), sim_log)
+        sim = harness.start('unicycle_sim', *harness.ros_params(
+            'publish_clock:=true', f'real_time_factor:={rtf}'), log_path=sim_log)
         # Start the motion only once the start pose is known.
-        if not spin_until(executor, lambda: observer.first is not None, _START_ALLOWANCE):
+        if not graph.spin_until(lambda: probe.odom is not None, _START_ALLOWANCE):
             print_tail('no odometry from unicycle_sim', sim_log)
             return Result(motion, 'no sim')
-        process = launch(motion.executable, ('use_sim_time:=true',) + motion.params, motion_log)
+        process = harness.start(motion.executable, *harness.ros_params(
+            'use_sim_time:=true', *motion.params), log_path=motion_log)
         # In lockstep the pace is the graph's, not rtf's: allow down to real time.
         timeout = _START_ALLOWANCE + motion.sim_seconds / min(rtf, 1.0)
-        if spin_until(executor, lambda: process.poll() is not None, timeout):
+        if graph.spin_until(lambda: process.poll() is not None, timeout):
             exit_code = process.returncode
         else:
-            stop(process)
+            harness.stop(process)
             exit_code = 'timeout'
         if exit_code != 0:
             print_tail(f'{motion.executable} exited with {exit_code}', motion_log)
         # The resting pose: odometry received after the motion process has gone.
-        seen = observer.count
-        spin_until(executor, lambda: observer.count > seen + 2 and not observer.moving, 2.0)
-        result = Result(motion, exit_code, observer.first, observer.latest,
-                        trajectory=observer.trajectory)
-        if observer.move_start and observer.move_end:
-            result.sim_s = observer.move_end[0] - observer.move_start[0]
-            result.wall_s = observer.move_end[1] - observer.move_start[1]
+        seen = len(probe.odoms)
+        graph.spin_until(lambda: len(probe.odoms) > seen + 2 and not is_moving(probe.odom), 2.0)
+        result = Result(motion, exit_code, Pose(*pose_of(probe.odoms[0])),
+                        Pose(*pose_of(probe.odom)),
+                        trajectory=[pose_of(odom) for odom in probe.odoms])
+        move_start, move_end = movement(probe)
+        if move_start and move_end:
+            result.sim_s = move_end[0] - move_start[0]
+            result.wall_s = move_end[1] - move_start[1]
         return result
     finally:
-        stop(process)
-        stop(sim)
-        executor.remove_node(observer)
-        observer.destroy_node()
-        executor.shutdown()
+        for child in (process, sim):
+            if child is not None:
+                harness.stop(child)
+        graph.remove(probe)
 
 
 def goal_pose(result):
@@ -285,28 +237,22 @@ def main():
               '(or `make demo`).', file=sys.stderr)
         return 2
 
-    domain_id = int(os.environ.get('MOTION_DEMO_DOMAIN_ID')
-                    or random.SystemRandom().randint(1, 100))
-    # Children inherit these: a domain of our own, discovery on this machine only.
-    os.environ['ROS_DOMAIN_ID'] = str(domain_id)
-    os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
-    print(f'ROS_DOMAIN_ID={domain_id}, localhost only, real-time factor {options.rtf:g}',
-          flush=True)
-
+    # Children inherit the domain: one of our own, discovery on this machine only.
+    graph = SimGraph()
+    print(f'ROS_DOMAIN_ID={os.environ["ROS_DOMAIN_ID"]}, localhost only, real-time factor '
+          f'{options.rtf:g}', flush=True)
     wall_start = time.monotonic()
-    context = Context()
-    rclpy.init(context=context, domain_id=domain_id)
     results = []
     try:
         with tempfile.TemporaryDirectory(prefix='motion_demo_') as log_dir:
             for i, motion in enumerate(MOTIONS, 1):
                 print(f'[{i}/{len(MOTIONS)}] {motion.label} ...', flush=True)
-                results.append(run_motion(motion, context, options.rtf, log_dir))
+                results.append(run_motion(motion, graph, options.rtf, log_dir))
     except KeyboardInterrupt:
         print('Interrupted')
         return 130
     finally:
-        rclpy.try_shutdown(context=context)
+        graph.close()
 
     print()
     print_table(results)
