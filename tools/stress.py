@@ -18,7 +18,7 @@ Stress the simulator longer than a test can: a cmd_vel flood into ``unicycle_sim
 ``python tools/stress.py`` (``make stress``) starts ``unicycle_sim`` on wall time (50 Hz
 odometry, cmd_vel timeout off) and floods its ``cmd_vel`` at --rate messages per second for
 --seconds from --publishers processes, each publishing pre-serialized Twists in a paced loop
-(the fastest way rclpy publishes: no Python-to-C conversion per message).  An observer in this
+(the fastest way rclpy publishes: no Python-to-C conversion per message).  A probe in this
 process records odometry.  It prints the rate the publishers reached, the odometry rate before
 and during the flood, the simulator's resident memory (RSS) and CPU over time, and whether the
 last command won, then exits 0 if odometry kept its rate within 10 %, RSS did not grow during
@@ -29,19 +29,16 @@ publisher process (the tests use it too): it waits for a cmd_vel subscriber, pub
 (0 = as fast as it can) for S seconds, cycling through 100 different commands, then sends
 ``--final`` once, waits until it is acknowledged and prints a JSON line with what it sent.
 
-Runs on its own ROS domain (random in 1..100, or MOTION_STRESS_DOMAIN_ID) with localhost-only
-discovery, so it never floods anyone else's robot.
+Runs on its own ROS domain (random in 1..100, or SIM_GRAPH_DOMAIN_ID) with localhost-only
+discovery, so it never floods anyone else's robot; processes are started and stopped by
+sim_diffdrive.harness.
 """
 
 import argparse
 import json
 import os
-import random
-import shutil
 import signal
-import subprocess
 import sys
-import tempfile
 import time
 
 # Fractions of the flood at its start and end left out of the odometry-rate window, so that
@@ -135,54 +132,28 @@ def stress(argv):
     parser.add_argument('--odom-rate', type=float, default=50.0, help='simulator rate_hz')
     args = parser.parse_args(argv)
 
-    os.environ['ROS_DOMAIN_ID'] = os.environ.get(
-        'MOTION_STRESS_DOMAIN_ID', str(random.SystemRandom().randint(1, 100)))
-    os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+    from sim_diffdrive import harness
 
-    from nav_msgs.msg import Odometry
-    import rclpy
-    from rclpy.context import Context
-    from rclpy.executors import SingleThreadedExecutor
-
-    sim_path = shutil.which('unicycle_sim')
-    if not sim_path:
-        print('unicycle_sim is not on PATH: activate the venv (make venv)', file=sys.stderr)
+    harness.isolated_domain_id()  # before anything starts: children inherit it
+    try:
+        sim = harness.start('unicycle_sim', *harness.ros_params(
+            f'rate_hz:={args.odom_rate}', 'cmd_vel_timeout:=0.0'))
+    except FileNotFoundError as error:
+        print(error, file=sys.stderr)
         return 1
-    workdir = tempfile.mkdtemp(prefix='motion_stress_')
-    sim_log = open(os.path.join(workdir, 'unicycle_sim.log'), 'w')
-    sim = subprocess.Popen(
-        [sim_path, '--ros-args', '-p', f'rate_hz:={args.odom_rate}',
-         '-p', 'cmd_vel_timeout:=0.0'], stdout=sim_log, stderr=subprocess.STDOUT)
+    # A graph of our own on an isolated domain, which the processes started here share.
+    graph = harness.SimGraph()
+    probe = graph.probe('stress_observer', use_sim_time=False)
     floods = []
-    context = Context()
-    rclpy.init(context=context)
-    executor = SingleThreadedExecutor(context=context)
-    node = rclpy.create_node('stress_observer', context=context)
-    executor.add_node(node)
-    odoms = []  # (stamp [s], linear.x, angular.z)
-
-    def on_odom(msg):
-        odoms.append((msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9,
-                      msg.twist.twist.linear.x, msg.twist.twist.angular.z))
-
-    node.create_subscription(Odometry, 'odom', on_odom, 100)
-
-    def spin_for(seconds):
-        end = time.monotonic() + seconds
-        while time.monotonic() < end:
-            executor.spin_once(timeout_sec=0.01)
 
     def rate_between(t0, t1):
-        count = sum(1 for stamp, _, _ in odoms if t0 <= stamp < t1)
+        count = sum(1 for odom in probe.odoms if t0 <= harness.stamp_s(odom) < t1)
         return count / (t1 - t0)
 
     try:
-        deadline = time.monotonic() + 20.0
-        while not odoms:
-            if time.monotonic() > deadline:
-                raise RuntimeError('no odometry from unicycle_sim')
-            executor.spin_once(timeout_sec=0.05)
-        spin_for(3.0)
+        if not graph.spin_until(lambda: probe.odom is not None, 20.0):
+            raise RuntimeError('no odometry from unicycle_sim:\n' + sim.output())
+        graph.spin_for(3.0)
         idle_end = time.time()
         idle_rate = rate_between(idle_end - 2.0, idle_end)
         rss_before = _rss_kb(sim.pid)
@@ -192,42 +163,31 @@ def stress(argv):
         per_process = args.rate / args.publishers
         for i in range(args.publishers):
             final = ['--final', *map(str, _FINAL)] if args.publishers == 1 else []
-            floods.append(subprocess.Popen(
-                [sys.executable, os.path.abspath(__file__), 'flood', '--rate',
-                 str(per_process), '--seconds', str(args.seconds), '--name',
-                 f'cmd_vel_flood_{i}', *final], stdout=subprocess.PIPE, text=True))
+            floods.append(harness.start(
+                sys.executable, os.path.abspath(__file__), 'flood', '--rate', str(per_process),
+                '--seconds', str(args.seconds), '--name', f'cmd_vel_flood_{i}', *final))
         next_sample = time.monotonic()
         while any(f.poll() is None for f in floods):
-            spin_for(0.05)
+            graph.spin_for(0.05)
             if time.monotonic() >= next_sample:
                 next_sample += 1.0
                 rss.append((time.time(), _rss_kb(sim.pid)))
         cpu_flood = _cpu_s(sim.pid) - cpu_before
-        results = [json.loads(f.stdout.read().strip().splitlines()[-1]) for f in floods]
+        results = [json.loads(f.output().strip().splitlines()[-1]) for f in floods]
         if args.publishers > 1:
             # The last command of all: sent here, once every flood has ended.
-            from geometry_msgs.msg import Twist
             from rclpy.duration import Duration
-            pub = node.create_publisher(Twist, 'cmd_vel', 10)
-            while pub.get_subscription_count() == 0:
-                executor.spin_once(timeout_sec=0.05)
-            pub.publish(_twist(*_FINAL))
-            pub.wait_for_all_acked(Duration(seconds=5.0))
-        spin_for(1.0)
+            graph.spin_until(lambda: probe.cmd_pub.get_subscription_count() > 0, 10.0)
+            probe.send(*_FINAL)
+            probe.cmd_pub.wait_for_all_acked(Duration(seconds=5.0))
+        graph.spin_for(1.0)
         rss_after = _rss_kb(sim.pid)
+        final = harness.twist_of(probe.odom)
     finally:
         for process in floods:
-            if process.poll() is None:
-                process.kill()
-        sim.send_signal(signal.SIGINT)
-        try:
-            sim.wait(10.0)
-        except subprocess.TimeoutExpired:
-            sim.kill()
-        sim_log.close()
-        executor.shutdown()
-        node.destroy_node()
-        rclpy.try_shutdown(context=context)
+            harness.stop(process, signal.SIGKILL)
+        harness.stop(sim, timeout=10.0)
+        graph.close()
 
     if any('error' in r for r in results):
         print(f'flood failed: {results}')
@@ -237,7 +197,6 @@ def stress(argv):
     end_wall = max(r['end_wall'] for r in results)
     seconds = end_wall - start_wall
     flood_rate = rate_between(start_wall + _EDGE_S, end_wall - _EDGE_S)
-    final = (odoms[-1][1], odoms[-1][2])
     # Growth from the first sample a second into the flood to the largest one after it.
     flooding = [(t, kb) for t, kb in rss if start_wall + 1.0 <= t <= end_wall]
     steady = flooding[0][1] if flooding else rss_before
