@@ -12,9 +12,9 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""tools/bench.py at small sizes: its reproduced originals against hand-computed answers."""
+"""tools/bench.py: its reproduced originals against hand-computed answers, and a quick run."""
 
-import importlib.util
+import importlib
 import json
 import math
 import os
@@ -24,18 +24,14 @@ import sys
 from conftest import DOMAIN_ID
 import pytest
 
-BENCH_PATH = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))),
-                          'tools', 'bench.py')
+TOOLS = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), 'tools')
+BENCH_PATH = os.path.join(TOOLS, 'bench.py')
 
-
-def _load_bench():
-    spec = importlib.util.spec_from_file_location('bench', BENCH_PATH)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
-bench = _load_bench()
+# The benchmark lives in tools/benchmark/, which tools/bench.py imports from its own folder.
+sys.path.insert(0, TOOLS)
+config = importlib.import_module('benchmark.config')
+originals = importlib.import_module('benchmark.originals')
+scenarios = importlib.import_module('benchmark.scenarios')
 
 # The original's speed: 60 deg/s converted with 3.14/180 [rad/s].
 ORIGINAL_SPEED = 60.0 * 3.14 / 180.0
@@ -43,8 +39,8 @@ ORIGINAL_SPEED = 60.0 * 3.14 / 180.0
 
 def original_turn(start_s):
     """Return the yaw after the original rotate_robot.py started at start_s [s] (90 deg cw)."""
-    robot = bench.ModelRobot(start_ns=round(start_s * bench.NS))
-    (_, _, yaw), seconds = robot.play(bench.original_rotate(robot, 60.0, 90.0, True), 10.0)
+    robot = originals.ModelRobot(start_ns=round(start_s * config.NS))
+    (_, _, yaw), seconds = robot.play(originals.original_rotate(robot, 60.0, 90.0, True), 10.0)
     return yaw, seconds
 
 
@@ -54,7 +50,7 @@ def test_original_rotate_from_a_whole_second_turns_two_seconds():
     yaw, seconds = original_turn(5.0)
     assert seconds == pytest.approx(2.0)
     assert yaw == pytest.approx(-2.0 * ORIGINAL_SPEED, abs=1e-12)
-    error = bench.yaw_error_deg(0.0, yaw, -math.pi / 2)
+    error = originals.yaw_error_deg(0.0, yaw, -math.pi / 2)
     assert error == pytest.approx(2.0 * 60.0 * 3.14 / math.pi - 90.0, abs=1e-9)
     assert error == pytest.approx(29.939, abs=1e-3)
 
@@ -65,35 +61,35 @@ def test_original_rotate_stops_on_the_first_tick_two_whole_seconds_later(offset,
     yaw, seconds = original_turn(5.0 + offset)
     assert seconds == pytest.approx(ticks * 0.1)
     assert yaw == pytest.approx(-ticks * 0.1 * ORIGINAL_SPEED, abs=1e-12)
-    assert bench.yaw_error_deg(0.0, yaw, -math.pi / 2) > 0.04
+    assert originals.yaw_error_deg(0.0, yaw, -math.pi / 2) > 0.04
 
 
 def test_start_times_are_spread_over_one_second_on_the_step():
-    times = bench.start_times(20, 0.05, 1.0)
-    offsets = [t % bench.NS / bench.NS for t in times]
+    times = originals.start_times(20, 0.05, 1.0)
+    offsets = [t % config.NS / config.NS for t in times]
     assert offsets == pytest.approx([0.05 * i for i in range(20)])
-    assert all(b - a >= 2 * bench.NS for a, b in zip(times, times[1:]))
+    assert all(b - a >= 2 * config.NS for a, b in zip(times, times[1:]))
 
 
 def test_original_rotate_against_the_simulator_matches_the_hand_computed_error():
-    errors = bench.rotate_original(1, DOMAIN_ID)
+    errors = scenarios.rotate_original(1, DOMAIN_ID)
     assert errors == [pytest.approx(29.939, abs=1e-3)]
 
 
 def test_rbx1_ticks_truncate_the_turn_to_3_14_rad():
-    drive, turn, turned = bench.rbx1_ticks()
+    drive, turn, turned = originals.rbx1_ticks()
     assert (drive, turn) == (250, 157)
     assert turned == pytest.approx(3.14)
     # The ticks come from the angle, not the duration: half the speed, half the turn.
-    assert bench.rbx1_ticks(angular_speed=0.5)[2] == pytest.approx(1.57)
+    assert originals.rbx1_ticks(angular_speed=0.5)[2] == pytest.approx(1.57)
 
 
 def test_rbx1_closure_is_off_by_the_truncated_turns():
-    robot = bench.ModelRobot()
-    (x, y, yaw), seconds = robot.play(bench.rbx1_timed_out_and_back(robot), 50.0)
+    robot = originals.ModelRobot()
+    (x, y, yaw), seconds = robot.play(originals.rbx1_timed_out_and_back(robot), 50.0)
     short = math.pi - 3.14
     # Out 1 m, turn 3.14, back 1 m: 2 sin(short / 2) from the start; two turns short.
-    mm, deg = bench.closure((0.0, 0.0, 0.0), (x, y, yaw))
+    mm, deg = originals.closure((0.0, 0.0, 0.0), (x, y, yaw))
     assert mm == pytest.approx(2000.0 * math.sin(short / 2.0), abs=1e-6)
     assert mm == pytest.approx(1.593, abs=1e-3)
     assert deg == pytest.approx(math.degrees(2.0 * short), abs=1e-9)
@@ -101,8 +97,8 @@ def test_rbx1_closure_is_off_by_the_truncated_turns():
 
 
 def test_move_rob_model_does_not_return_but_a_single_publish_per_flip_does():
-    robot = bench.ModelRobot()
-    (x, y, _), _ = robot.play(bench.move_rob(robot, cycles=1, half_period=3.0), 10.0)
+    robot = originals.ModelRobot()
+    (x, y, _), _ = robot.play(originals.move_rob(robot, cycles=1, half_period=3.0), 10.0)
     assert math.hypot(x, y) > 0.01
     # The same loop with one complete Twist per flip retraces the arc exactly.
 
@@ -112,13 +108,13 @@ def test_move_rob_model_does_not_return_but_a_single_publish_per_flip_does():
             robot.publish(sign * 0.5, sign * 0.5)
             yield
         robot.publish(0.0, 0.0)
-    robot = bench.ModelRobot()
+    robot = originals.ModelRobot()
     (x, y, yaw), _ = robot.play(single_publish(robot), 10.0)
     assert math.hypot(x, y) < 1e-12 and abs(yaw) < 1e-12
 
 
 def test_euler_error_is_orders_of_magnitude_above_the_exact_arc():
-    errors = bench.integration_errors(laps=100)
+    errors = originals.integration_errors(laps=100)
     assert errors['arc_max_m'] < 1e-8
     # Euler's phase lag on a constant circle peaks at about v * dt = 1 cm.
     assert 0.005 < errors['euler_max_m'] <= 0.0101
@@ -126,25 +122,34 @@ def test_euler_error_is_orders_of_magnitude_above_the_exact_arc():
 
 
 def test_quick_run_writes_every_row(tmp_path):
+    # The same command as make bench, at the small sizes of --quick (config.Sizes).
     path = tmp_path / 'bench.json'
-    env = dict(os.environ)
     result = subprocess.run(
         [sys.executable, BENCH_PATH, '--quick', '--json', str(path),
          '--domain-id', str(DOMAIN_ID)],
-        env=env, capture_output=True, text=True, timeout=120)
+        env=dict(os.environ), capture_output=True, text=True, timeout=120)
     assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
     report = json.loads(path.read_text())
     assert report['quick'] is True
-    assert tuple(report['rows']) == bench.ROW_KEYS
+    assert tuple(report['rows']) == config.ROW_KEYS
     for key, row in report['rows'].items():
         for field in ('measure', 'project', 'reference', 'target', 'result', 'note'):
             assert isinstance(row[field], str) and row[field], (key, field)
         assert row['result'] in ('met', 'missed', '-'), key
         assert (row['target'] == '-') == (row['result'] == '-'), key
-    rows = report['rows']
-    original = rows['rotate_timed']['data']['original_errors_deg']
+    rows = {key: row['data'] for key, row in report['rows'].items()}
+    sizes = config.Sizes(quick=True)
+    original = rows['rotate_timed']['original_errors_deg']
+    assert len(original) == sizes.starts
     assert original[0] == pytest.approx(29.939, abs=1e-3)
-    assert rows['rtf_in_process']['data']['events_identical'] is True
-    assert rows['out_and_back_closure']['data']['rbx1_mm'] == pytest.approx(1.593, abs=1e-3)
+    assert max(rows['rotate_odom']['project_errors_deg']) < 1e-6
+    assert rows['rtf_in_process']['events_identical'] is True
+    assert rows['out_and_back_closure']['rbx1_mm'] == pytest.approx(1.593, abs=1e-3)
+    assert rows['integration_error']['arc_max_m'] < 1e-8
+    assert tuple(rows['rtf_processes']['rtf']) == sizes.process_scenarios
+    assert rows['latency']['samples'] + rows['latency']['lost'] == sizes.latency_samples
+    assert rows['cpu_idle']['idle_percent'] >= 0.0
+    assert tuple(rows['scaling_one_process']['rtf']) == tuple(map(str, sizes.robots))
+    assert tuple(rows['scaling_processes']['rtf']) == tuple(map(str, sizes.robots_processes))
     # The table is printed too.
     assert 'this project' in result.stdout and 'reference' in result.stdout
