@@ -67,7 +67,7 @@ class OdomOutAndBack(MotionNode):
         command = self.legs.command(now_ns, self.odom, self.turned.total,
                                     self.predicted_progress(now_ns))
         if command is not None:
-            self.progress(f'Leg {self.legs.leg} of {self.legs.legs}: {self.legs.step.value}')
+            self.progress(f'Leg {self.legs.leg} of {self.params.legs}: {self.legs.step.value}')
         return command
 
     def goal_pose(self, start):
