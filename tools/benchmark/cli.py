@@ -94,9 +94,9 @@ def parse_args(argv):
                         help='ROS domain to use (default: random in 1..100)')
     parser.add_argument('--only', default=None,
                         help='comma-separated groups to run, of: ' + ', '.join(GROUPS))
-    parser.add_argument('--rtf', type=float, default=None,
+    parser.add_argument('--rtf', type=float, default=100.0,
                         help='real_time_factor (an upper bound) of the simulator across '
-                             'processes (default: 100, 10 with --quick)')
+                             'processes (default: %(default)g)')
     return parser.parse_args(argv)
 
 
@@ -136,8 +136,7 @@ def main(argv=None):
 
     children = Children()
     try:
-        rtf = options.rtf or (10.0 if sizes.quick else 100.0)
-        rows = measure(selected, sizes, children, domain_id, rtf, progress)
+        rows = measure(selected, sizes, children, domain_id, options.rtf, progress)
     except KeyboardInterrupt:
         print('Interrupted', file=sys.stderr)
         return 130

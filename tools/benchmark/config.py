@@ -68,9 +68,9 @@ class Sizes:
             else {'goal_distance': 0.2, 'angular_speed': 2.0, 'pause': 0.2})
         self.scaling_window_s = 0.5 if quick else 2.0
         # The three default scenarios for the real-time factor (shortened with --quick).
-        self.circle_rtf = {'cycles': 1, 'half_period': 1.0 if quick else 15.0}
+        self.circle_rtf = {'cycles': 1, 'half_period': 0.5 if quick else 15.0}
         self.out_and_back_rtf = (
-            {'goal_distance': 0.1, 'angular_speed': 4.0, 'pause': 0.05} if quick else {})
+            {'goal_distance': 0.05, 'angular_speed': 4.0, 'pause': 0.0} if quick else {})
         self.process_scenarios = ('rotate',) if quick else ('rotate', 'circle', 'out_and_back')
         # Runs of each motion across processes; two show whether runs are identical.
         self.process_runs = 1 if quick else 2
