@@ -26,10 +26,16 @@ import pytest
 import rclpy
 from rclpy.context import Context
 from sim_diffdrive import harness
+from sim_diffdrive.harness import DOMAIN_VARIABLE
 from sim_diffdrive.harness import isolated_domain_id
 from sim_diffdrive.harness import SimGraph
 
 DOMAIN_ID = isolated_domain_id()
+if os.environ.get('PYTEST_XDIST_WORKER', 'gw0') != 'gw0':
+    # pytest -n: each worker on a domain of its own (the run's, shifted by the worker number).
+    worker = int(os.environ['PYTEST_XDIST_WORKER'][2:])
+    os.environ[DOMAIN_VARIABLE] = str((DOMAIN_ID - 1 + worker) % 100 + 1)
+    DOMAIN_ID = isolated_domain_id()
 # Subprocesses write each log line at once, so a test reads their output as it happens.
 os.environ.setdefault('RCUTILS_LOGGING_BUFFERED_STREAM', '0')
 

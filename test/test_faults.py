@@ -97,24 +97,17 @@ def test_garbage_then_end_of_input_refuses_and_never_moves(graph, procs):
     assert all((m.linear.x, m.angular.z) == (0.0, 0.0) for _, _, m in watcher.commands)
 
 
+# Each refusal's wording is tested in-process (test_parameters.py); here each executable shows
+# the path from a bad -p to exit code 2, one kind of refusal each.
 BAD_PARAMETERS = (
     # (executable, -p argument, what the refusal must say)
-    ('unicycle_sim', 'rate_hz:=abc', "parameter 'rate_hz' must be a number; got 'abc'"),
-    ('unicycle_sim', 'max_linear_speed:=-1.0', "parameter 'max_linear_speed' must be in"),
     ('unicycle_sim', 'rate_hz:=[1', "'-p rate_hz:=[1'"),
     ('rotate_robot', 'mode:=fast', "parameter 'mode' must be one of timed, odom; got 'fast'"),
-    ('rotate_robot', 'angular_speed_deg:=-60.0', "parameter 'angular_speed_deg' must be in"),
     ('circle_back_and_forth', 'cycles:=1.5', "parameter 'cycles' must be an integer"),
-    ('circle_back_and_forth', 'linear_speed:=-0.5', "parameter 'linear_speed' must be in"),
-    ('timed_out_and_back', 'legs:=1.5', "parameter 'legs' must be an integer; got 1.5"),
-    ('timed_out_and_back', 'linear_speed:=-0.2', "parameter 'linear_speed' must be in"),
+    ('timed_out_and_back', 'rate_hz:=-1.0',
+     "parameter 'rate_hz' must be in (0.0, 1000.0]; got -1.0"),
     ('odom_out_and_back', 'goal_distance:=far', "parameter 'goal_distance' must be a number"),
-    ('odom_out_and_back', 'angular_speed:=-1.0', "parameter 'angular_speed' must be in"),
-) + tuple(
-    # Every motion shares rate_hz, with an open lower bound.
-    (name, 'rate_hz:=-1.0', "parameter 'rate_hz' must be in (0.0, 1000.0]; got -1.0")
-    for name in ('rotate_robot', 'circle_back_and_forth', 'timed_out_and_back',
-                 'odom_out_and_back'))
+)
 
 
 def test_bad_parameters_are_refused_by_name_for_every_executable(procs, tmp_path):

@@ -69,7 +69,10 @@ node.create_subscription(Odometry, 'odom', on_odom, 10)
 take_part(node)
 rclpy.spin(node)
 """
-CLOSED_LOOP = ('odom_out_and_back', 'goal_distance:=0.3', 'pause:=0.1', 'angular_speed:=2.0')
+# One leg: 0.3 m out, a pause, a half turn, a pause; it ends at (0.3, 0, pi).
+CLOSED_LOOP = ('odom_out_and_back', 'legs:=1', 'goal_distance:=0.3', 'pause:=0.1',
+               'angular_speed:=2.0')
+CLOSED_LOOP_END = (0.3, 0.0, math.pi)
 OPEN_LOOP = ('rotate_robot', 'angular_speed_deg:=60.0', 'angle_deg:=90.0', 'clockwise:=true')
 
 
@@ -121,6 +124,14 @@ def run_motion(graph, probe, executable, *params):
     return motion.returncode, output, probe.odom
 
 
+def assert_at(odom, expected, output):
+    """Assert that odometry shows the pose expected (x, y, yaw) to 1e-9 m and rad."""
+    x, y, yaw = pose_of(odom)
+    goal_x, goal_y, goal_yaw = expected
+    assert math.hypot(x - goal_x, y - goal_y) < 1e-9, output
+    assert angle_error(yaw, goal_yaw) < 1e-9, output
+
+
 def test_motions_end_exact_and_bit_identical_on_a_busy_machine(graph, busy_machine, simulator):
     _, probe, reset = simulator
     ends = {}
@@ -133,7 +144,7 @@ def test_motions_end_exact_and_bit_identical_on_a_busy_machine(graph, busy_machi
             ends.setdefault(executable, []).append(odom.pose.pose)
             x, y, yaw = pose_of(odom)
             if executable == 'odom_out_and_back':
-                assert math.hypot(x, y) < 1e-9 and angle_error(yaw, 0.0) < 1e-9, output
+                assert_at(odom, CLOSED_LOOP_END, output)
             else:
                 assert angle_error(yaw, math.radians(-90.0)) < 1e-12, output
             assert odom.twist.twist.linear.x == 0.0 and odom.twist.twist.angular.z == 0.0
@@ -199,8 +210,7 @@ def test_a_clock_held_for_a_slow_participant_is_not_a_dead_simulator(graph, simu
         staller_output = stop(staller)
     assert 'stalled' in staller_output, staller_output
     assert code == 0, output  # not 'No odometry for 1.5 s mid-motion'
-    x, y, yaw = pose_of(odom)
-    assert math.hypot(x, y) < 1e-9 and angle_error(yaw, 0.0) < 1e-9, output
+    assert_at(odom, CLOSED_LOOP_END, output)
     sim_output = stop(sim)
     assert 'Lockstep: /staller takes part' in sim_output
     assert 'going on without' not in sim_output

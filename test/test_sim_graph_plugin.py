@@ -35,22 +35,18 @@ def readme_example():
     return match.group(1)
 
 
-def run_pytest(directory, source):
-    (directory / 'test_my_controller.py').write_text(source)
-    return subprocess.run(
+def test_the_readme_example_passes_from_a_directory_of_its_own_and_can_fail(tmp_path):
+    example = readme_example()
+    (tmp_path / 'test_my_controller.py').write_text(example)
+    # The same controller stopping half a second early must fail the same assertions.
+    (tmp_path / 'test_stops_early.py').write_text(
+        example.replace('2_000_000_000', '1_500_000_000'))
+    result = subprocess.run(
         [sys.executable, '-m', 'pytest', '-q', '-p', 'no:cacheprovider', '-W',
-         'ignore::DeprecationWarning', 'test_my_controller.py'],
-        cwd=directory, capture_output=True, text=True, timeout=120)
-
-
-def test_the_readme_example_passes_from_a_directory_of_its_own(tmp_path):
-    result = run_pytest(tmp_path, readme_example())
-    assert result.returncode == 0, result.stdout + result.stderr
-    assert '1 passed' in result.stdout
-
-
-def test_a_controller_that_stops_early_fails_the_example(tmp_path):
-    source = readme_example().replace('2_000_000_000', '1_500_000_000')
-    result = run_pytest(tmp_path, source)
-    assert result.returncode == 1, result.stdout + result.stderr
-    assert 'assert' in result.stdout and '1 failed' in result.stdout
+         'ignore::DeprecationWarning', '-rA', 'test_my_controller.py', 'test_stops_early.py'],
+        cwd=tmp_path, capture_output=True, text=True, timeout=120)
+    output = result.stdout + result.stderr
+    assert result.returncode == 1, output
+    assert '1 failed, 1 passed' in output
+    assert 'PASSED test_my_controller.py::test_drives_one_metre_and_stops' in output
+    assert 'FAILED test_stops_early.py::test_drives_one_metre_and_stops' in output
