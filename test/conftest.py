@@ -80,3 +80,15 @@ def procs(tmp_path):
     finally:
         for process in started:
             process.kill()
+
+
+# The longest modules start first, so that with pytest -n the short ones fill in around them
+# instead of one long test running alone at the end.
+_FIRST = ('test_lockstep_processes', 'test_interrupts', 'test_bench', 'test_faults')
+
+
+def pytest_collection_modifyitems(items):
+    def rank(item):
+        name = item.module.__name__.rpartition('.')[2]
+        return _FIRST.index(name) if name in _FIRST else len(_FIRST)
+    items.sort(key=rank)
