@@ -177,15 +177,16 @@ class SimGraph(Lockstep):
     A simulator and the nodes under test in this process, stepped in lockstep (see Lockstep).
 
     Without a context, the graph makes its own on an isolated domain and shuts it down on
-    close(); ``context`` is what to build the nodes under test with.
+    close(); ``context`` is what to build the nodes under test with.  executor_class may be
+    any callable taking context= (rclpy.experimental.EventsExecutor, for one).
     """
 
-    def __init__(self, context=None):
+    def __init__(self, context=None, executor_class=SingleThreadedExecutor):
         self._own_context = context is None
         if context is None:
             context = Context()
             rclpy.init(context=context, domain_id=isolated_domain_id())
-        super().__init__(SingleThreadedExecutor(context=context))
+        super().__init__(executor_class(context=context))
         self.context = context
         self._probe = None
 

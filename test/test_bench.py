@@ -21,8 +21,8 @@ import os
 import subprocess
 import sys
 
-from conftest import DOMAIN_ID
 import pytest
+from sim_diffdrive.harness import isolated_domain_id
 
 TOOLS = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), 'tools')
 BENCH_PATH = os.path.join(TOOLS, 'bench.py')
@@ -35,6 +35,7 @@ scenarios = importlib.import_module('benchmark.scenarios')
 
 # The original's speed: 60 deg/s converted with 3.14/180 [rad/s].
 ORIGINAL_SPEED = 60.0 * 3.14 / 180.0
+DOMAIN_ID = isolated_domain_id()
 
 
 def original_turn(start_s):

@@ -27,7 +27,6 @@ import os
 from geometry_msgs.msg import Twist
 import rclpy
 from rclpy.context import Context
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -72,11 +71,7 @@ class BenchGraph(SimGraph):
     """
 
     def __init__(self, executor_class=EventsExecutor, domain_id=None, offline=True):
-        super().__init__(init_context(domain_id, 'OFF' if offline else None))
-        # SimGraph spins with a SingleThreadedExecutor; rclpy's EventsExecutor is a factory.
-        if executor_class is not SingleThreadedExecutor:
-            self.executor.shutdown()
-            self.executor = executor_class(context=self.context)
+        super().__init__(init_context(domain_id, 'OFF' if offline else None), executor_class)
 
     def close(self):
         try:
