@@ -12,4 +12,11 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""A light kinematic unicycle simulator: Twist in, Odometry out, optional /clock."""
+"""
+A light kinematic unicycle simulator (Twist in, Odometry out, optional /clock), and its tools.
+
+Pure maths (kinematics, angles, handshake), the node plumbing every node here shares
+(parameters, runtime, participant), the simulator node (sim_node, lockstep_owner), and the
+harness to test robot code against it (harness, lockstep, pytest_plugin).  It imports nothing
+from motion_challenges (see README "Architecture").
+"""

@@ -40,7 +40,9 @@ import signal
 import subprocess
 import sys
 import tempfile
+import threading
 import time
+import weakref
 
 from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
@@ -202,22 +204,24 @@ class SimGraph(Lockstep):
         params.setdefault('use_sim_time', True)
         return _overrides(params)
 
-    def sim(self, lockstep=True, **params):
+    def sim(self, stepped=True, **params):
         """
-        Start a simulator that owns time (publish_clock) with the given parameters.
+        Start a simulator with the given parameters (any of unicycle_sim's).
 
-        In lockstep (the default) the graph, not the wall clock, steps simulated time; with
-        lockstep=False it runs on its own timer at ``real_time_factor``.  Also starts the probe
-        that pose() reads.
+        stepped (the default): it owns time (publish_clock) and the graph steps it, not the
+        wall clock.  stepped=False: it runs on its own timers, pacing its clock at
+        ``real_time_factor`` (publish_clock) or following another /clock (use_sim_time).
         """
-        params.setdefault('publish_clock', True)
+        params.setdefault('publish_clock', stepped)
+        if stepped and (not params['publish_clock'] or self.clock_owner is not None):
+            raise ValueError('a stepped simulator owns the clock: one per graph, with '
+                             'publish_clock true (use stepped=False for any other)')
         params.setdefault('real_time_factor', FREE_REAL_TIME_FACTOR)
         # The graph steps the clock itself, not the simulator's handshake with other processes.
         params.setdefault('lockstep', False)
         sim = UnicycleSim(context=self.context, parameter_overrides=_overrides(params))
-        self.add_clock_owner(sim) if lockstep else self.add(sim)
-        if self._probe is None:
-            self._probe = self.probe(name='sim_graph_odom', listen_only=True)
+        self.add_clock_owner(sim) if stepped else self.add(sim)
+        self._listen()  # to odometry from the first message on
         return sim
 
     def probe(self, name='probe', namespace=None, use_sim_time=True, **kwargs):
@@ -225,6 +229,16 @@ class SimGraph(Lockstep):
         return self.add(Probe(name, namespace=namespace, context=self.context,
                               parameter_overrides=_overrides({'use_sim_time': use_sim_time}),
                               **kwargs))
+
+    @property
+    def odometry(self):
+        """Return the graph's listening Probe on ``odom`` (odoms, odom_walls)."""
+        return self._listen()
+
+    def _listen(self):
+        if self._probe is None:
+            self._probe = self.probe(name='sim_graph_odom', listen_only=True)
+        return self._probe
 
     def pose(self):
         """Return (x, y, yaw) of the latest odometry the graph has seen."""
@@ -235,15 +249,18 @@ class SimGraph(Lockstep):
 
     def odom(self):
         """Return the latest Odometry message the graph has seen, or None."""
-        return self._probe.odom if self._probe is not None else None
+        return self.odometry.odom
 
-    def wait_for_odometry(self, timeout=20.0):
-        """Spin (wall time) until odometry arrives, e.g. from a simulator process; return it."""
-        if self._probe is None:
-            self._probe = self.probe(name='sim_graph_odom', listen_only=True)
-        if not self.spin_until(lambda: self._probe.odom is not None, timeout):
-            raise RuntimeError(f'no odometry within {timeout} s: is a simulator running?')
-        return self._probe.odom
+    def wait_for_odometry(self, timeout=20.0, process=None):
+        """
+        Spin (wall time) until odometry arrives, e.g. from a simulator process; return it.
+
+        Raises RuntimeError after timeout, with process's output when one is given.
+        """
+        if not self.spin_until(lambda: self.odometry.odom is not None, timeout):
+            log = f':\n{process.describe()}' if process is not None else ''
+            raise RuntimeError(f'no odometry within {timeout} s: is a simulator running?{log}')
+        return self.odometry.odom
 
     def spin_until(self, predicate, timeout=10.0, poll=0.01):
         """Spin until predicate() is true; return whether it became true within timeout (wall)."""
@@ -294,11 +311,16 @@ class Process:
             os.close(fd)
         self.log_path = Path(log_path)
         with open(self.log_path, 'w') as log:
+            _let_children_hear_ctrl_c()
+        with open(self.log_path, 'w') as log:
             self.popen = subprocess.Popen(
                 command, stdin=stdin, stdout=log, stderr=subprocess.STDOUT,
-                env=dict(os.environ if env is None else env), preexec_fn=_default_signals)
+                env=dict(os.environ if env is None else env))
         self.pid = self.popen.pid
-        self._final_output = None  # kept once stop() has removed a temporary log
+        self._final_output = None  # kept once kill() has removed a temporary log
+        if self._temporary:
+            # Also removed when the Process is forgotten (or at exit) without being stopped.
+            weakref.finalize(self, self.log_path.unlink, missing_ok=True)
         self.signalled_at = None  # monotonic time of the last send()
         self.exited_at = None  # monotonic time at which poll() or wait() first saw the exit
 
@@ -337,12 +359,16 @@ class Process:
         return self.log_path.read_text(errors='replace')
 
     def kill(self):
+        """Kill the process unless it has exited; a temporary log is read and removed."""
         if self.popen.poll() is None:
             self.popen.kill()
             self.popen.wait()
         self.poll()
         if self.popen.stdin:
             self.popen.stdin.close()
+        if self._temporary and self._final_output is None:
+            self._final_output = self.output()
+            self.log_path.unlink(missing_ok=True)
 
     def describe(self):
         """Return the command line and the output, for an assertion message."""
@@ -371,17 +397,16 @@ def stop(process, signum=signal.SIGINT, timeout=5.0):
         except subprocess.TimeoutExpired:
             pass
     process.kill()
-    output = process.output()
-    if process._temporary:
-        process._final_output = output
-        process.log_path.unlink(missing_ok=True)
-    return output
+    return process.output()
 
 
-def _default_signals():
+def _let_children_hear_ctrl_c():
     # A process started from a non-interactive shell's background job ignores SIGINT, and so
-    # would its children; a user's Ctrl-C reaches a process with the default handler.
-    signal.signal(signal.SIGINT, signal.SIG_DFL)
+    # would its children: a handler (reset to the default at exec) rather than an ignored
+    # signal lets a child hear a user's Ctrl-C.
+    if (signal.getsignal(signal.SIGINT) is signal.SIG_IGN
+            and threading.current_thread() is threading.main_thread()):
+        signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 def closing_line(output):

@@ -65,6 +65,8 @@ class Lockstep:
         topics = {pub.topic_name for pub in node.publishers}
         self.executor.remove_node(node)
         self.nodes.remove(node)
+        if node is self.clock_owner:
+            self.clock_owner = None
         node.destroy_node()
         self._instrument()
 
@@ -137,15 +139,25 @@ class Lockstep:
         return round(_NS / self.clock_owner.params.rate_hz)
 
     def step(self, steps=1, timeout=10.0):
-        """Advance simulated time by whole steps, letting the graph settle after each."""
+        """
+        Advance simulated time by whole steps, letting the graph settle after each.
+
+        What the caller sent between two steps (a command published from the test) is handled
+        first, at the time it was sent, not one step later.
+        """
         if not self._discovered:
             self.wait_for_discovery()
+        now_ns = self.clock_owner.now_ns()
+        if not self.spin_until(lambda: self._handled == self._sent, timeout):
+            raise RuntimeError(f'messages sent at t={now_ns / _NS:.3f} s were not handled')
         for _ in range(steps):
             self.clock_owner.step()
             self.steps += 1
-            now_ns = self.clock_owner.now_ns()
-            if not self.spin_until(lambda: self.settled(now_ns), timeout):
-                raise RuntimeError(f'graph did not settle at t={now_ns / _NS:.3f} s')
+            self._settle(self.clock_owner.now_ns(), timeout)
+
+    def _settle(self, now_ns, timeout):
+        if not self.spin_until(lambda: self.settled(now_ns), timeout):
+            raise RuntimeError(f'graph did not settle at t={now_ns / _NS:.3f} s')
 
     def step_until(self, predicate, sim_timeout):
         """Step until predicate() holds; raise after sim_timeout simulated seconds."""

@@ -12,7 +12,7 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""tools/bench.py: its reproduced originals against hand-computed answers, and a quick run."""
+"""The benchmark (tools/benchmark/): its originals against hand-computed answers, a quick run."""
 
 import importlib
 import json

@@ -98,7 +98,8 @@ def test_garbage_then_end_of_input_refuses_and_never_moves(graph, procs):
 
 
 # Each refusal's wording is tested in-process (test_parameters.py); here each executable shows
-# the path from a bad -p to exit code 2, one kind of refusal each.
+# the path from a bad -p to exit code 2, one kind of refusal each (unicycle_sim's range refusal
+# as a process: test_sim_process.py).
 BAD_PARAMETERS = (
     # (executable, -p argument, what the refusal must say)
     ('unicycle_sim', 'rate_hz:=[1', "'-p rate_hz:=[1'"),

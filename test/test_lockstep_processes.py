@@ -116,8 +116,11 @@ def simulator(graph, request):
 def run_motion(graph, probe, executable, *params):
     """Run a motion on sim time to its end; return (exit code, output, final odometry pose)."""
     motion = start(executable, 'use_sim_time:=true', *params)
-    assert graph.spin_until(lambda: motion.poll() is not None, 60.0), 'motion did not finish'
-    output = motion.output()
+    try:
+        finished = graph.spin_until(lambda: motion.poll() is not None, 60.0)
+    finally:
+        output = stop(motion)
+    assert finished, 'motion did not finish:\n' + output
     # The stop reached the simulator before the motion exited; wait for odometry after it.
     stamp = stamp_s(probe.odom)
     assert graph.spin_until(lambda: stamp_s(probe.odom) > stamp + 0.1, 10.0)
@@ -161,7 +164,8 @@ def test_a_killed_participant_is_left_behind_and_a_late_one_is_waited_for(graph,
         circle.wait()
         killed_at = stamp_s(probe.odom)
         # The clock goes on without it (freewheeling at up to FACTOR once it is dropped, so the
-        # probe may read odometry far behind), and the cmd_vel timeout stops the robot.
+        # probe may read odometry far behind), and the cmd_vel timeout stops the robot (exactly
+        # cmd_vel_timeout after the last command: test_sim_graph.py measures that).
         assert graph.spin_until(lambda: stamp_s(probe.odom) > killed_at + 2.0
                                 and probe.odom.twist.twist.linear.x == 0.0, 20.0)
     finally:

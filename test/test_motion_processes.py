@@ -26,8 +26,7 @@ import subprocess
 import pytest
 from sim_diffdrive.harness import angle_error
 from sim_diffdrive.harness import pose_of
-from sim_diffdrive.harness import start
-from sim_diffdrive.harness import stop
+from sim_diffdrive.harness import ros_params
 
 RATE_HZ = 50.0
 REAL_TIME_FACTOR = 4.0
@@ -37,25 +36,16 @@ ONE_STEP_AT_60 = math.radians(60.0 / RATE_HZ) * 1.01
 
 
 @pytest.fixture
-def sim_process(graph):
+def sim_process(graph, procs):
     """Start a unicycle_sim process owning time, and an in-process probe on its odometry."""
-    processes = []
-
     def launch(*params):
-        args = ['--ros-args', '-p', 'publish_clock:=true',
-                '-p', f'real_time_factor:={REAL_TIME_FACTOR}', '-p', f'rate_hz:={RATE_HZ}']
-        for param in params:
-            args += ['-p', param]
-        processes.append(start('unicycle_sim', *args))
+        sim = procs('unicycle_sim', 'unicycle_sim', *ros_params(
+            'publish_clock:=true', f'real_time_factor:={REAL_TIME_FACTOR}', f'rate_hz:={RATE_HZ}',
+            *params))
         probe = graph.probe()
-        assert graph.spin_until(lambda: probe.odom is not None, 15.0), 'no odometry from sim'
+        assert graph.spin_until(lambda: probe.odom is not None, 15.0), sim.describe()
         return probe
-
-    try:
-        yield launch
-    finally:
-        for process in processes:
-            stop(process)
+    return launch
 
 
 def finish(graph, process, timeout=30.0):
@@ -72,9 +62,9 @@ def settle(graph, probe, seconds=0.3):
     return pose_of(probe.odom)
 
 
-def test_typed_answers_through_a_pipe_rotate_the_robot(graph, sim_process):
+def test_typed_answers_through_a_pipe_rotate_the_robot(graph, sim_process, procs):
     probe = sim_process()
-    motion = start('rotate_robot', *ROTATE_ARGS, stdin=subprocess.PIPE)
+    motion = procs('rotate_robot', 'rotate_robot', *ROTATE_ARGS, stdin=subprocess.PIPE)
     motion.write('60\n90\ny\n')
     motion.close_input()
     code, output = finish(graph, motion)
@@ -87,9 +77,10 @@ def test_typed_answers_through_a_pipe_rotate_the_robot(graph, sim_process):
     assert probe.odom.twist.twist.angular.z == 0.0
 
 
-def test_bad_answers_are_explained_and_asked_again(graph, sim_process):
+def test_bad_answers_are_explained_and_asked_again(graph, sim_process, procs):
     probe = sim_process()
-    motion = start('rotate_robot', *ROTATE_ARGS, '-p', 'mode:=odom', stdin=subprocess.PIPE)
+    motion = procs('rotate_robot', 'rotate_robot', *ROTATE_ARGS, '-p', 'mode:=odom',
+                   stdin=subprocess.PIPE)
     motion.write('fast\n-5\nnan\n60\n\n1e9\n45\nmaybe\nN\n')
     motion.close_input()
     code, output = finish(graph, motion)
@@ -103,9 +94,9 @@ def test_bad_answers_are_explained_and_asked_again(graph, sim_process):
     assert angle_error(yaw, math.radians(45.0)) < ONE_STEP_AT_60
 
 
-def test_input_ending_early_refuses_and_never_moves(graph, sim_process):
+def test_input_ending_early_refuses_and_never_moves(graph, sim_process, procs):
     probe = sim_process()
-    motion = start('rotate_robot', *ROTATE_ARGS, stdin=subprocess.PIPE)
+    motion = procs('rotate_robot', 'rotate_robot', *ROTATE_ARGS, stdin=subprocess.PIPE)
     motion.write('60\n')
     motion.close_input()
     code, output = finish(graph, motion)
@@ -116,9 +107,9 @@ def test_input_ending_early_refuses_and_never_moves(graph, sim_process):
     assert all(o.twist.twist.angular.z == 0.0 for o in probe.odoms)
 
 
-def test_parameters_skip_the_questions(graph, sim_process):
+def test_parameters_skip_the_questions(graph, sim_process, procs):
     probe = sim_process()
-    motion = start('rotate_robot', *ROTATE_ARGS, '-p', 'angular_speed_deg:=90',
+    motion = procs('rotate_robot', 'rotate_robot', *ROTATE_ARGS, '-p', 'angular_speed_deg:=90',
                    '-p', 'angle_deg:=180', '-p', 'clockwise:=false', '-p', 'mode:=odom')
     code, output = finish(graph, motion)
     assert code == 0, output
@@ -127,9 +118,10 @@ def test_parameters_skip_the_questions(graph, sim_process):
     assert angle_error(yaw, math.pi) < math.radians(90.0 / RATE_HZ) * 1.01
 
 
-def test_odom_motion_without_odometry_gives_up_and_never_moves(graph):
+def test_odom_motion_without_odometry_gives_up_and_never_moves(graph, procs):
     probe = graph.probe(use_sim_time=False)
-    motion = start('odom_out_and_back', '--ros-args', '-p', 'start_timeout:=1.0')
+    motion = procs('odom_out_and_back', 'odom_out_and_back', '--ros-args',
+                   '-p', 'start_timeout:=1.0')
     # Be the robot's cmd_vel subscriber, but never publish odometry.
     received = []
     probe.create_subscription(type(probe.cmd_pub.msg_type()), 'cmd_vel', received.append, 10)

@@ -365,7 +365,7 @@ class ExternalClock:
 
     def __init__(self, graph, **params):
         self.graph = graph
-        self.sim = graph.sim(lockstep=False, publish_clock=False, use_sim_time=True, **params)
+        self.sim = graph.sim(stepped=False, publish_clock=False, use_sim_time=True, **params)
         self.probe = graph.probe()
         source = graph.add(Node('clock_source', context=graph.context))
         self.clock_pub = source.create_publisher(

@@ -143,16 +143,15 @@ def stress(argv):
         return 1
     # A graph of our own on an isolated domain, which the processes started here share.
     graph = harness.SimGraph()
-    probe = graph.probe('stress_observer', use_sim_time=False)
     floods = []
 
     def rate_between(t0, t1):
-        count = sum(1 for odom in probe.odoms if t0 <= harness.stamp_s(odom) < t1)
+        count = sum(1 for odom in observed.odoms if t0 <= harness.stamp_s(odom) < t1)
         return count / (t1 - t0)
 
     try:
-        if not graph.spin_until(lambda: probe.odom is not None, 20.0):
-            raise RuntimeError('no odometry from unicycle_sim:\n' + sim.output())
+        graph.wait_for_odometry(20.0, process=sim)
+        observed = graph.odometry  # kept: rate_between() reads it after the graph is closed
         graph.spin_for(3.0)
         idle_end = time.time()
         idle_rate = rate_between(idle_end - 2.0, idle_end)
@@ -177,12 +176,13 @@ def stress(argv):
         if args.publishers > 1:
             # The last command of all: sent here, once every flood has ended.
             from rclpy.duration import Duration
-            graph.spin_until(lambda: probe.cmd_pub.get_subscription_count() > 0, 10.0)
-            probe.send(*_FINAL)
-            probe.cmd_pub.wait_for_all_acked(Duration(seconds=5.0))
+            sender = graph.probe('stress_final_command', use_sim_time=False)
+            graph.spin_until(lambda: sender.cmd_pub.get_subscription_count() > 0, 10.0)
+            sender.send(*_FINAL)
+            sender.cmd_pub.wait_for_all_acked(Duration(seconds=5.0))
         graph.spin_for(1.0)
         rss_after = _rss_kb(sim.pid)
-        final = harness.twist_of(probe.odom)
+        final = harness.twist_of(observed.odom)
     finally:
         for process in floods:
             harness.stop(process, signal.SIGKILL)

@@ -16,7 +16,6 @@
 
 import argparse
 import os
-import random
 import shutil
 import signal
 import sys
@@ -44,6 +43,8 @@ from benchmark.table import write_json
 import rclpy
 from rclpy.experimental import EventsExecutor
 from rclpy.logging import LoggingSeverity
+from sim_diffdrive.harness import DOMAIN_VARIABLE
+from sim_diffdrive.harness import isolated_domain_id
 
 EXECUTABLES = ('unicycle_sim', 'rotate_robot', 'circle_back_and_forth', 'timed_out_and_back')
 
@@ -116,10 +117,10 @@ def main(argv=None):
         print(f'Unknown group(s) for --only: {", ".join(sorted(selected - set(GROUPS)))}',
               file=sys.stderr)
         return 2
-    domain_id = options.domain_id or random.SystemRandom().randint(1, 100)
-    # Children inherit these: a domain of our own, discovery on this machine only.
-    os.environ['ROS_DOMAIN_ID'] = str(domain_id)
-    os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+    if options.domain_id:
+        os.environ[DOMAIN_VARIABLE] = str(options.domain_id)
+    # Children inherit it: a domain of our own, discovery on this machine only.
+    domain_id = isolated_domain_id()
     signal.signal(signal.SIGTERM, _interrupt)
     # The nodes in this process log their progress at INFO: keep it out of the table's way.
     rclpy.logging.set_logger_level('', LoggingSeverity.WARN)

@@ -1,0 +1,111 @@
+# Copyright 2026 motion_challenges contributors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""The harness itself (sim_diffdrive.harness): processes, logs, and a graph's simulators."""
+
+import gc
+import signal
+import time
+
+import pytest
+from sim_diffdrive.harness import SimGraph
+from sim_diffdrive.harness import start_python
+from sim_diffdrive.harness import stop
+
+# Waits for Ctrl-C, says so, and exits 0 (as the executables do).
+INTERRUPTIBLE = """
+import time
+print('ready', flush=True)
+try:
+    time.sleep(30)
+except KeyboardInterrupt:
+    print('interrupted', flush=True)
+"""
+
+
+def test_stop_returns_the_output_and_removes_the_temporary_log():
+    process = start_python("print('hello', flush=True)")
+    assert process.wait(20.0) == 0
+    output = stop(process)
+    assert 'hello' in output
+    assert not process.log_path.exists()
+    assert process.output() == output  # still readable after the file is gone
+
+
+def test_a_process_never_stopped_leaves_no_log_behind():
+    process = start_python('pass')
+    log_path = process.log_path
+    process.wait(20.0)
+    assert log_path.exists()
+    del process
+    gc.collect()
+    assert not log_path.exists()
+
+
+def test_a_child_hears_ctrl_c_even_when_this_process_ignores_it():
+    # A test run started in the background of a non-interactive shell ignores SIGINT.
+    saved = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        process = start_python(INTERRUPTIBLE)
+        deadline = time.monotonic() + 20.0
+        while 'ready' not in process.output() and time.monotonic() < deadline:
+            time.sleep(0.05)
+        output = stop(process, timeout=5.0)
+    finally:
+        signal.signal(signal.SIGINT, saved)
+    assert 'interrupted' in output, output
+    assert process.returncode == 0
+    assert process.exited_at - process.signalled_at < 4.0
+
+
+def test_a_graph_without_a_stepped_simulator_removes_nodes(ros_context):
+    graph = SimGraph(ros_context)
+    try:
+        probe = graph.probe(listen_only=True)
+        other = graph.probe('other', listen_only=True)
+        graph.remove(probe)
+        assert graph.nodes == [other]
+    finally:
+        graph.close()
+
+
+def test_one_stepped_simulator_per_graph_and_it_owns_the_clock(graph):
+    sim = graph.sim()
+    with pytest.raises(ValueError, match='one per graph'):
+        graph.sim()
+    graph.remove(sim)
+    assert graph.clock_owner is None
+    with pytest.raises(ValueError, match='publish_clock true'):
+        graph.sim(publish_clock=False)
+    graph.sim(stepped=False, publish_clock=False)  # on someone else's clock: fine
+
+
+def test_waiting_for_odometry_that_never_comes_says_so_with_the_process_log(graph):
+    process = start_python("print('no simulator here', flush=True)")
+    try:
+        process.wait(20.0)
+        with pytest.raises(RuntimeError, match='no simulator here'):
+            graph.wait_for_odometry(0.2, process=process)
+    finally:
+        stop(process)
+
+
+def test_step_for_moves_the_simulated_robot_as_commanded(graph):
+    graph.sim(cmd_vel_timeout=0.0)  # one command, kept
+    probe = graph.probe()
+    graph.step_for(0.1)
+    probe.send(0.5, 0.0)
+    graph.step_for(2.0)
+    x, y, yaw = graph.pose()
+    assert x == pytest.approx(1.0, abs=1e-9) and (y, yaw) == (0.0, 0.0)
