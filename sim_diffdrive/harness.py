@@ -224,6 +224,11 @@ class SimGraph(Lockstep):
         self._listen()  # to odometry from the first message on
         return sim
 
+    def node(self, node_class, namespace=None, **params):
+        """Build node_class(context=, parameter_overrides=) on sim time with params; add it."""
+        return self.add(node_class(namespace=namespace, context=self.context,
+                                   parameter_overrides=self.sim_time_params(**params)))
+
     def probe(self, name='probe', namespace=None, use_sim_time=True, **kwargs):
         """Add a Probe (see its arguments), on sim time unless use_sim_time is False."""
         return self.add(Probe(name, namespace=namespace, context=self.context,

@@ -21,31 +21,13 @@ from motion_challenges.odom_out_and_back import OdomOutAndBack
 from motion_challenges.prompts import RotationRequest
 from motion_challenges.rotate_robot import RotateRobot
 from motion_challenges.timed_out_and_back import TimedOutAndBack
-from nav_msgs.msg import Odometry
 import pytest
-from rclpy.node import Node
-from rclpy.parameter import Parameter
 from sim_diffdrive.harness import angle_error
 from sim_diffdrive.harness import pose_of
 from sim_diffdrive.sim_node import UnicycleSim
 
 MM = 1e-3
 HUNDREDTH_DEG = math.radians(0.01)
-
-
-def build(graph, node_class, namespace=None, **params):
-    params.setdefault('use_sim_time', True)
-    return graph.add(node_class(namespace=namespace, context=graph.context, parameter_overrides=[
-        Parameter(name, value=value) for name, value in params.items()]))
-
-
-class OdomListener(Node):
-    """Records the odometry of one robot (in its namespace)."""
-
-    def __init__(self, **kwargs):
-        super().__init__('odom_listener', **kwargs)
-        self.odoms = []
-        self.create_subscription(Odometry, 'odom', self.odoms.append, 100)
 
 
 def run_to_end(graph, node, sim_timeout):
@@ -61,7 +43,7 @@ def run_to_end(graph, node, sim_timeout):
 def test_rotate_ends_at_goal_yaw(graph, mode, clockwise, angle_deg):
     graph.sim()
     probe = graph.probe()
-    node = build(graph, RotateRobot, mode=mode)
+    node = graph.node(RotateRobot, mode=mode)
     node.start(RotationRequest(60.0, angle_deg, clockwise))
     run_to_end(graph, node, sim_timeout=angle_deg / 60.0 + 5.0)
     _, _, yaw = pose_of(probe.odom)
@@ -75,9 +57,9 @@ def test_rotate_ends_at_goal_yaw(graph, mode, clockwise, angle_deg):
 def test_rotate_on_odometry_far_slower_than_its_control_rate_ends_at_goal_yaw(graph, clockwise):
     """Twenty commands between two odometry messages all count in the lag compensation."""
     graph.sim(rate_hz=200.0)  # owns the clock, in steps of 5 ms
-    build(graph, UnicycleSim, namespace='/robot1', rate_hz=10.0)
-    robot = build(graph, OdomListener, namespace='/robot1')
-    node = build(graph, RotateRobot, namespace='/robot1', mode='odom', rate_hz=200.0)
+    graph.node(UnicycleSim, namespace='/robot1', rate_hz=10.0)
+    robot = graph.probe('odom_listener', namespace='/robot1', listen_only=True)
+    node = graph.node(RotateRobot, namespace='/robot1', mode='odom', rate_hz=200.0)
     node.start(RotationRequest(60.0, 90.0, clockwise))
     run_to_end(graph, node, sim_timeout=5.0)
     _, _, yaw = pose_of(robot.odoms[-1])
@@ -89,7 +71,7 @@ def test_rotate_on_odometry_far_slower_than_its_control_rate_ends_at_goal_yaw(gr
 def test_out_and_back_returns_to_start(graph, node_class):
     graph.sim(initial_x=1.0, initial_y=-2.0, initial_yaw=0.5)
     probe = graph.probe()
-    node = build(graph, node_class)
+    node = graph.node(node_class)
     run_to_end(graph, node, sim_timeout=40.0)
     x, y, yaw = pose_of(probe.odom)
     assert math.hypot(x - 1.0, y + 2.0) < MM
@@ -102,8 +84,8 @@ def test_circle_returns_after_each_cycle_and_reaches_two_radii(graph):
     graph.sim()
     probe = graph.probe()
     v, w, half = 0.5, 0.5, 3.0
-    node = build(graph, CircleBackAndForth, linear_speed=v, angular_speed=w,
-                 half_period=half, cycles=2)
+    node = graph.node(CircleBackAndForth, linear_speed=v, angular_speed=w,
+                      half_period=half, cycles=2)
     run_to_end(graph, node, sim_timeout=20.0)
     start_ns = node.start_ns
     for cycle in (1, 2):
@@ -119,7 +101,7 @@ def test_circle_with_defaults_reaches_the_diameter_and_comes_back(graph):
     graph.sim()
     probe = graph.probe()
     # Defaults: 0.5 m/s, 0.5 rad/s, 15 s: the 7.5 rad arc passes the far side of its circle.
-    node = build(graph, CircleBackAndForth, cycles=1)
+    node = graph.node(CircleBackAndForth, cycles=1)
     run_to_end(graph, node, sim_timeout=40.0)
     far = max(math.hypot(*pose_of(o)[:2]) for o in probe.odoms)
     assert far == pytest.approx(2 * 0.5 / 0.5, abs=MM)

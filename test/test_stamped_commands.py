@@ -27,19 +27,12 @@ from motion_challenges.timed_out_and_back import TimedOutAndBack
 from nav_msgs.msg import Odometry
 import pytest
 from rclpy.node import Node
-from rclpy.parameter import Parameter
 from rclpy.time import Time
 from sim_diffdrive.harness import angle_error
 from sim_diffdrive.harness import pose_of
 from sim_diffdrive.sim_node import UnicycleSim
 
 STEP_NS = 20_000_000  # the simulators' default 50 Hz
-
-
-def build(graph, node_class, namespace=None, **params):
-    params.setdefault('use_sim_time', True)
-    return graph.add(node_class(namespace=namespace, context=graph.context, parameter_overrides=[
-        Parameter(name, value=value) for name, value in params.items()]))
 
 
 class Driver(Node):
@@ -67,8 +60,8 @@ class Driver(Node):
 @pytest.mark.parametrize('node_class', [TimedOutAndBack, OdomOutAndBack])
 def test_stamped_motions_end_exact_against_a_stamped_simulator(graph, node_class):
     graph.sim(stamped=True, initial_yaw=0.5)
-    watcher = build(graph, Driver, namespace='/')
-    node = build(graph, node_class, stamped=True)
+    watcher = graph.node(Driver, namespace='/')
+    node = graph.node(node_class, stamped=True)
     graph.step_until(lambda: node.done, 40.0)
     graph.step_for(0.2)
     assert node.exit_code == 0
@@ -79,8 +72,8 @@ def test_stamped_motions_end_exact_against_a_stamped_simulator(graph, node_class
 def test_a_command_stamped_ahead_of_the_clock_waits_for_its_step(graph):
     """A simulator on another's clock applies a command at its stamp, not when it arrives."""
     graph.sim()
-    build(graph, UnicycleSim, namespace='/robot1', stamped=True)
-    driver = build(graph, Driver, namespace='/robot1')
+    graph.node(UnicycleSim, namespace='/robot1', stamped=True)
+    driver = graph.node(Driver, namespace='/robot1')
     graph.step_for(0.1)
     now_ns = graph.now_ns
     # Sent for the next step, whose /clock has not reached the robot's simulator yet.
