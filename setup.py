@@ -27,6 +27,8 @@ setup(
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml', 'README.md']),
         ('share/' + package_name + '/config', glob('config/*.yaml')),
+        ('share/' + package_name + '/launch', glob('launch/*.launch.py')),
+        ('share/' + package_name + '/rviz', glob('rviz/*.rviz')),
     ],
     # rclpy and the message packages come from ROS 2 (apt's /opt/ros/jazzy or the ros-* wheels
     # the Makefile installs), never from here, so colcon builds this on a ROS machine as is.

@@ -102,10 +102,14 @@ def test_every_console_script_is_an_executable_in_lib_package(indexed):
         assert os.access(path, os.X_OK), f'{path} is not executable'
 
 
-def test_config_files_are_installed(indexed):
+@pytest.mark.parametrize('folder, pattern', [
+    ('config', '*.yaml'), ('launch', '*.launch.py'), ('rviz', '*.rviz')])
+def test_share_files_are_installed(indexed, folder, pattern):
     share = get_package_share_directory(PACKAGE)
-    for source in glob.glob(os.path.join(SOURCE_DIR, 'config', '*.yaml')):
-        assert os.path.isfile(os.path.join(share, 'config', os.path.basename(source))), source
+    sources = glob.glob(os.path.join(SOURCE_DIR, folder, pattern))
+    assert sources, f'no {folder}/{pattern} in the source tree'
+    for source in sources:
+        assert os.path.isfile(os.path.join(share, folder, os.path.basename(source))), source
 
 
 def test_installed_simulator_runs_from_the_install_tree(indexed):
