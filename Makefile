@@ -26,7 +26,8 @@ PY_DEPS := numpy pytest pytest-xdist hypothesis colcon-common-extensions matplot
 
 venv: $(STAMP)
 
-$(STAMP): Makefile setup.py package.xml tools/setup_venv.sh
+$(STAMP): Makefile setup.py package.xml tools/setup_venv.sh tools/build_tf2_msgs.py \
+		tools/interfaces/tf2_msgs/msg/TFMessage.msg
 	PYTHON=$(PYTHON) VENV=$(VENV) ROS_WHEELS="$(ROS_WHEELS)" \
 		ROS_TEST_WHEELS="$(ROS_TEST_WHEELS)" PY_DEPS="$(PY_DEPS)" bash tools/setup_venv.sh
 	touch $@

@@ -33,6 +33,13 @@ pip=("$VENV/bin/python" -m pip --disable-pip-version-check -q)
 "${pip[@]}" install $ros_wheels $PY_DEPS
 "${pip[@]}" install -e .
 
+if [ "${ROS_DISTRO:-}" != "jazzy" ]; then
+  # PyPI has no tf2_msgs wheel (the simulator publishes /tf with it): generate and compile
+  # TFMessage from tools/interfaces/ with the rosidl generators and headers the wheels brought.
+  # With ROS 2 Jazzy sourced, apt's ros-jazzy-tf2-msgs is the one to use.
+  "$VENV/bin/python" tools/build_tf2_msgs.py
+fi
+
 # Make `. .venv/bin/activate` a shell where rclpy finds its ament index and talks only locally.
 if ! grep -q 'motion_challenges environment' "$VENV/bin/activate"; then
   cat >> "$VENV/bin/activate" <<'ACTIVATE'
