@@ -41,6 +41,8 @@ from rosgraph_msgs.msg import Clock as ClockMsg
 from sim_diffdrive.angles import quaternion_from_yaw
 from sim_diffdrive.kinematics import UnicycleModel
 from sim_diffdrive.lockstep_owner import LockstepOwner
+from sim_diffdrive.odom_tf import OdomTransform
+from sim_diffdrive.odom_tf import resolve_frame
 from sim_diffdrive.parameters import declare
 from sim_diffdrive.parameters import ParameterError
 from sim_diffdrive.parameters import Spec
@@ -69,6 +71,8 @@ PARAMETERS = (
          low=0.0, high=3600.0),
     Spec('odom_frame_id', 'odom', 'Frame of the odometry pose (REP 105).'),
     Spec('base_frame_id', 'base_footprint', 'Child frame of the odometry (REP 105).'),
+    Spec('publish_tf', True,
+         'Publish odom_frame_id -> base_frame_id on /tf with each odometry.'),
     Spec('initial_x', 0.0, 'Start position x in the odom frame [m].',
          low=-_POSITION_LIMIT, high=_POSITION_LIMIT),
     Spec('initial_y', 0.0, 'Start position y in the odom frame [m].',
@@ -134,8 +138,11 @@ class UnicycleSim(Node):
             p.max_linear_speed, p.max_angular_speed, p.max_linear_accel, p.max_angular_accel)
         self._step_ns = round(_NS / p.rate_hz)
         self._odom_msg = Odometry()
-        self._odom_msg.header.frame_id = p.odom_frame_id
-        self._odom_msg.child_frame_id = p.base_frame_id
+        # In a namespace the default frames get its prefix (robot1/odom), as on /tf.
+        frame = {spec.name: spec.default for spec in PARAMETERS}
+        ns = self.get_namespace()
+        self._odom_msg.header.frame_id = resolve_frame(ns, p.odom_frame_id, frame['odom_frame_id'])
+        self._odom_msg.child_frame_id = resolve_frame(ns, p.base_frame_id, frame['base_frame_id'])
         self._odom_msg.pose.covariance = _covariance(p.pose_covariance_diagonal)
         self._odom_msg.twist.covariance = _covariance(p.twist_covariance_diagonal)
         self._timeout_ns = round(p.cmd_vel_timeout * _NS)
@@ -150,6 +157,7 @@ class UnicycleSim(Node):
 
         self._odom_pub = self.create_publisher(Odometry, 'odom', 10)
         self._path_pub = self.create_publisher(Path, 'path', 1)
+        self._tf = OdomTransform(self) if p.publish_tf else None
         self._path = deque(maxlen=p.path_length)
         self._path_every = max(1, round(p.rate_hz / p.path_rate_hz))
         self._odom_count = 0
@@ -351,6 +359,8 @@ class UnicycleSim(Node):
         msg.twist.twist.linear.x = m.linear
         msg.twist.twist.angular.z = m.angular
         self._odom_pub.publish(msg)
+        if self._tf is not None:
+            self._tf.publish(msg)
         if self._odom_count % self._path_every == 0:
             self._record_path(msg)
         if self._odom_count % self._check_every == 0:

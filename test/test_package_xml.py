@@ -40,7 +40,7 @@ ROSDEP_KEYS = {
 }
 # ROS packages a Python module of the same name comes from.
 ROS_PACKAGES = {'geometry_msgs', 'nav_msgs', 'rcl_interfaces', 'rclpy', 'rosgraph_msgs',
-                'std_msgs', 'std_srvs'}
+                'std_msgs', 'std_srvs', 'tf2_msgs'}
 
 
 def third_party_imports():
