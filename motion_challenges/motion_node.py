@@ -57,18 +57,18 @@ COMMON_PARAMETERS = (
     Spec('start_timeout', 10.0,
          'How long to wait for the robot (a cmd_vel subscriber, and odometry where the motion '
          'needs it) before giving up [s, wall time], from when the goal is known (typed).',
-         low=0.0, high=3600.0, low_open=True),
+         low=0.0, high=3600.0, low_open=True, live=True),
     Spec('odom_timeout', 1.0,
          'Closed loop: stop and fail when no odometry came for this long mid-motion '
          '[s, wall time].',
-         low=0.0, high=3600.0, low_open=True),
+         low=0.0, high=3600.0, low_open=True, live=True),
     Spec('plot_file', '',
          'Write a PNG of the run (trajectory, start, end and goal) here; empty = no plot. '
-         'Needs matplotlib.'),
+         'Needs matplotlib.', live=True),
     Spec('stamped', False,
          'Publish geometry_msgs/TwistStamped, stamped with the node clock, instead of Twist '
          "(ros2_control's diff_drive_controller takes only TwistStamped)."),
-    Spec('frame_id', 'base_footprint', 'With stamped: frame_id of the commands.'),
+    Spec('frame_id', 'base_footprint', 'With stamped: frame_id of the commands.', live=True),
 )
 
 

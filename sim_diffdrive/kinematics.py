@@ -92,15 +92,24 @@ class UnicycleModel:
         self.angular = 0.0
         self.target_linear = 0.0
         self.target_angular = 0.0
+        self.commanded = (0.0, 0.0)
 
     def command(self, linear, angular):
         """Set the velocity command; speed limits apply at once, acceleration limits over time."""
+        self.commanded = (linear, angular)
         self.target_linear = limit_command(linear, 0.0, self.max_linear_speed, 0.0, 0.0)
         self.target_angular = limit_command(angular, 0.0, self.max_angular_speed, 0.0, 0.0)
         if self.max_linear_accel <= 0.0:
             self.linear = self.target_linear
         if self.max_angular_accel <= 0.0:
             self.angular = self.target_angular
+
+    def set_limit(self, name, value):
+        """Change one limit (e.g. 'max_linear_speed'); the command in force is limited anew."""
+        if not hasattr(self, name) or not name.startswith('max_'):
+            raise AttributeError(f'UnicycleModel has no limit {name!r}')
+        setattr(self, name, value)
+        self.command(*self.commanded)
 
     @property
     def ramping(self):

@@ -13,23 +13,33 @@
 # limitations under the License.
 
 """
-Declare a node's parameters from one table and refuse bad values at start.
+Declare a node's parameters from one table, refuse bad values, apply live changes.
 
 Each parameter gets a ParameterDescriptor with its description and, for numbers, its range, so
 ``ros2 param describe`` tells users what a value means.  Values are then checked here rather
 than left to rclpy, so that ``-p angle_deg:=90`` (an integer) is accepted for a floating-point
 parameter and every refusal names the parameter, its range and the value given.
+
+A parameter is either live (``Spec(..., live=True)``: a runtime set, e.g. ``ros2 param set``,
+is checked by the same ``Spec.check``, stored and handed to the node's ``on_change``) or
+read-only (the default: its descriptor says so and rclpy refuses a runtime set), so no set is
+ever accepted and then silently ignored.
 """
 
+from array import array
 from collections.abc import Sequence
 from dataclasses import dataclass
 import math
+import re
 from types import SimpleNamespace
 
 from rcl_interfaces.msg import FloatingPointRange
 from rcl_interfaces.msg import IntegerRange
 from rcl_interfaces.msg import ParameterDescriptor
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.parameter import Parameter
+
+READ_ONLY_NOTE = ' Read-only: set at start.'
 
 
 class ParameterError(ValueError):
@@ -44,7 +54,8 @@ class Spec:
     A default of None declares the parameter without a value (it is then None unless given at
     start); ``kind`` names its type.  ``low``/``high`` bound numbers (and every element of a
     number array); ``low_open`` excludes ``low`` itself (a speed must be > 0).  ``choices``
-    restricts strings.  ``length`` fixes the size of an array.
+    restricts strings.  ``length`` fixes the size of an array.  ``live`` lets it change while
+    the node runs; otherwise it is read-only after start.
     """
 
     name: str
@@ -56,6 +67,7 @@ class Spec:
     choices: tuple = ()
     length: int = None
     kind: type = None
+    live: bool = False
 
     @property
     def type_(self):
@@ -67,8 +79,9 @@ class Spec:
 
     def descriptor(self):
         descriptor = ParameterDescriptor(
-            name=self.name, description=self.description, dynamic_typing=True,
-            additional_constraints=self.constraints())
+            name=self.name, description=self.description + ('' if self.live else READ_ONLY_NOTE),
+            dynamic_typing=True, additional_constraints=self.constraints(),
+            read_only=not self.live)
         if self.low is not None and self.high is not None:
             if self.type_ in (float, list):
                 descriptor.floating_point_range = [FloatingPointRange(
@@ -125,6 +138,12 @@ class Spec:
             raise self._error(value, self._range_text())
         return value
 
+    @property
+    def unit(self):
+        """Return the unit the description gives in brackets ('s' for '[s, wall time]'), or ''."""
+        match = re.search(r'\[([^\],]+)[\],]', self.description)
+        return match.group(1).strip() if match else ''
+
     def _interval(self):
         return f'{"(" if self.low_open else "["}{self.low}, {self.high}]'
 
@@ -132,19 +151,25 @@ class Spec:
         return 'must be in ' + self._interval()
 
     def _error(self, value, why):
+        if isinstance(value, array):
+            value = value.tolist()  # as rclpy hands over arrays from the command line or a set
         return ParameterError(f"parameter '{self.name}' {why}; got {value!r}")
 
 
-def declare(node, specs):
+def declare(node, specs, on_change=None):
     """
     Declare every Spec on node and return the checked values as attributes.
 
-    Raises ParameterError naming the first parameter whose value is unusable.
+    Raises ParameterError naming the first parameter whose value is unusable.  Once declared,
+    a live parameter set at runtime is checked by its Spec (refused with the same words as at
+    start), stored converted (an integer for a float becomes the float), written to the
+    returned values and passed to ``on_change(name, value)``, which makes it take effect.
     """
     values = SimpleNamespace()
     for spec in specs:
         # Declared without its range first, so that the check below (not rclpy's) words the
         # refusal; the full descriptor then guards later changes and shows in introspection.
+        # It is also where read_only is set: the conversion below is still a set.
         descriptor = spec.descriptor()
         unbounded = ParameterDescriptor(
             name=spec.name, description=descriptor.description, dynamic_typing=True,
@@ -156,7 +181,75 @@ def declare(node, specs):
                                   != Parameter.Type.from_parameter_value(value)):
             # Store the converted value so `ros2 param get` shows what the node runs with.
             node.set_parameters([Parameter(spec.name, value=value)])
-        if descriptor.floating_point_range or descriptor.integer_range:
+        if descriptor.floating_point_range or descriptor.integer_range or descriptor.read_only:
             node.set_descriptor(spec.name, descriptor)
         setattr(values, spec.name, value)
+    live = {spec.name: spec for spec in specs if spec.live}
+    if live:
+        _LiveParameters(node, live, values, on_change).attach()
     return values
+
+
+def live_parameters(node):
+    """Return the names of node's parameters that declare() made live."""
+    return frozenset(getattr(node, '_live_parameters', ()))
+
+
+class _LiveParameters:
+    """
+    The rclpy parameter callbacks that check, store and apply a node's live parameters.
+
+    rclpy checks a descriptor's range before any on-set callback, in its own words and without
+    open bounds, so the pre-set callback runs Spec.check first: a good value goes on converted,
+    a bad one is swapped for the current value (which passes rclpy's checks) and the on-set
+    callback then refuses that very Parameter with the Spec's words.
+    """
+
+    def __init__(self, node, specs, values, on_change):
+        self.node = node
+        self.specs = specs
+        self.values = values
+        self.on_change = on_change
+        self._refusals = {}  # id of a swapped-in Parameter -> (Parameter, the refusal)
+
+    def attach(self):
+        node = self.node
+        node._live_parameters = live_parameters(node) | set(self.specs)
+        node.add_pre_set_parameters_callback(self._convert)
+        node.add_on_set_parameters_callback(self._refuse)
+        node.add_post_set_parameters_callback(self._apply)
+
+    def _convert(self, parameters):
+        self._refusals.clear()
+        converted = []
+        for parameter in parameters:
+            spec = self.specs.get(parameter.name)
+            if spec is not None:
+                try:
+                    parameter = Parameter(spec.name, value=spec.check(parameter.value))
+                except ParameterError as error:
+                    current = self.node.get_parameter(spec.name)
+                    parameter = Parameter(spec.name, current.type_, current.value)
+                    self._refusals[id(parameter)] = (parameter, str(error))
+            converted.append(parameter)
+        return converted
+
+    def _refuse(self, parameters):
+        for parameter in parameters:
+            swapped, reason = self._refusals.get(id(parameter), (None, None))
+            if swapped is parameter:
+                return SetParametersResult(successful=False, reason=reason)
+        return SetParametersResult(successful=True)
+
+    def _apply(self, parameters):
+        self._refusals.clear()
+        for parameter in parameters:
+            spec = self.specs.get(parameter.name)
+            if spec is None:
+                continue
+            value = spec.check(parameter.value)
+            setattr(self.values, spec.name, value)
+            if self.on_change is not None:
+                self.on_change(spec.name, value)
+            shown = repr(value) if isinstance(value, str) else value
+            self.node.get_logger().info(f'{spec.name} is now {shown} {spec.unit}'.rstrip())

@@ -68,50 +68,52 @@ PARAMETERS = (
          low=0.0, high=1000.0, low_open=True),
     Spec('cmd_vel_timeout', 0.5,
          'Stop the robot when no cmd_vel arrived for this long [s]; 0 keeps the last command.',
-         low=0.0, high=3600.0),
-    Spec('odom_frame_id', 'odom', 'Frame of the odometry pose (REP 105).'),
-    Spec('base_frame_id', 'base_footprint', 'Child frame of the odometry (REP 105).'),
+         low=0.0, high=3600.0, live=True),
+    Spec('odom_frame_id', 'odom', 'Frame of the odometry pose and the path (REP 105).',
+         live=True),
+    Spec('base_frame_id', 'base_footprint', 'Child frame of the odometry (REP 105).',
+         live=True),
     Spec('publish_tf', True,
          'Publish odom_frame_id -> base_frame_id on /tf with each odometry.'),
-    Spec('initial_x', 0.0, 'Start position x in the odom frame [m].',
-         low=-_POSITION_LIMIT, high=_POSITION_LIMIT),
-    Spec('initial_y', 0.0, 'Start position y in the odom frame [m].',
-         low=-_POSITION_LIMIT, high=_POSITION_LIMIT),
-    Spec('initial_yaw', 0.0, 'Start heading in the odom frame [rad], counter-clockwise from x.',
-         low=-100.0, high=100.0),
+    Spec('initial_x', 0.0, 'Start position x in the odom frame [m]; a change takes effect at '
+         'the next ~/reset.', low=-_POSITION_LIMIT, high=_POSITION_LIMIT, live=True),
+    Spec('initial_y', 0.0, 'Start position y in the odom frame [m]; a change takes effect at '
+         'the next ~/reset.', low=-_POSITION_LIMIT, high=_POSITION_LIMIT, live=True),
+    Spec('initial_yaw', 0.0, 'Start heading in the odom frame [rad], counter-clockwise from x; '
+         'a change takes effect at the next ~/reset.', low=-100.0, high=100.0, live=True),
     Spec('max_linear_speed', 0.0, 'Largest |linear.x| applied [m/s]; 0 = unlimited.',
-         low=0.0, high=1000.0),
+         low=0.0, high=1000.0, live=True),
     Spec('max_angular_speed', 0.0, 'Largest |angular.z| applied [rad/s]; 0 = unlimited.',
-         low=0.0, high=1000.0),
+         low=0.0, high=1000.0, live=True),
     Spec('max_linear_accel', 0.0, 'Largest linear acceleration [m/s^2]; 0 = unlimited.',
-         low=0.0, high=1000.0),
+         low=0.0, high=1000.0, live=True),
     Spec('max_angular_accel', 0.0, 'Largest angular acceleration [rad/s^2]; 0 = unlimited.',
-         low=0.0, high=1000.0),
+         low=0.0, high=1000.0, live=True),
     Spec('pose_covariance_diagonal', [0.001, 0.001, 0.001, 0.001, 0.001, 0.01],
          'Diagonal of the odometry pose covariance (x, y, z, roll, pitch, yaw).',
-         low=0.0, high=1e9, length=6),
+         low=0.0, high=1e9, length=6, live=True),
     Spec('twist_covariance_diagonal', [0.001, 0.001, 0.001, 0.001, 0.001, 0.01],
          'Diagonal of the odometry twist covariance (x, y, z, roll, pitch, yaw).',
-         low=0.0, high=1e9, length=6),
+         low=0.0, high=1e9, length=6, live=True),
     Spec('publish_clock', False,
          'Own time: publish /clock so nodes with use_sim_time run on simulated time.'),
     Spec('real_time_factor', 1.0,
          'With publish_clock: simulated seconds per wall second (e.g. 20.0).',
-         low=0.0, high=10000.0, low_open=True),
+         low=0.0, high=10000.0, low_open=True, live=True),
     Spec('lockstep', True,
          'With publish_clock: step in lockstep with the nodes that take part (every motion on '
          'sim time): no step before each has answered the last one. false: a free clock.'),
     Spec('lockstep_timeout', 2.0,
          'With lockstep: wall seconds to wait for one participant before warning and going '
-         'on without it.', low=0.0, high=3600.0, low_open=True),
+         'on without it.', low=0.0, high=3600.0, low_open=True, live=True),
     Spec('stamped', False, 'Subscribe to geometry_msgs/TwistStamped instead of Twist.'),
     Spec('max_command_age', 0.5,
          'With stamped: refuse a command stamped further than this from now [s]; 0 = accept all.',
-         low=0.0, high=3600.0),
+         low=0.0, high=3600.0, live=True),
     Spec('path_length', 1000, 'Poses kept in the driven path published on path (newest last).',
-         low=1, high=1000000),
+         low=1, high=1000000, live=True),
     Spec('path_rate_hz', 10.0, 'Rate at which poses are added to the path [Hz].',
-         low=0.0, high=1000.0, low_open=True),
+         low=0.0, high=1000.0, low_open=True, live=True),
 )
 
 
@@ -127,7 +129,7 @@ class UnicycleSim(Node):
 
     def __init__(self, **kwargs):
         super().__init__('unicycle_sim', **kwargs)
-        self.params = declare(self, PARAMETERS)
+        self.params = declare(self, PARAMETERS, on_change=self._on_parameter)
         p = self.params
         if p.publish_clock and self.get_parameter('use_sim_time').value:
             raise ParameterError(
@@ -333,6 +335,39 @@ class UnicycleSim(Node):
                 'latest one wins')
         elif count <= 1:
             self._warned_publishers = False
+
+    def _on_parameter(self, name, value):
+        """Make a live parameter's new value take effect (declare() has checked and stored it)."""
+        self._advance_to(self.now_ns())  # up to now, the old value held
+        odom = self._odom_msg
+        if name == 'cmd_vel_timeout':
+            self._timeout_ns = round(value * _NS)
+        elif name in ('max_linear_speed', 'max_angular_speed', 'max_linear_accel',
+                      'max_angular_accel'):
+            self.model.set_limit(name, value)
+        elif name == 'pose_covariance_diagonal':
+            odom.pose.covariance = _covariance(value)
+        elif name == 'twist_covariance_diagonal':
+            odom.twist.covariance = _covariance(value)
+        elif name == 'odom_frame_id':
+            odom.header.frame_id = value
+            self._path.clear()  # a path is in one frame
+        elif name == 'base_frame_id':
+            odom.child_frame_id = value
+        elif name == 'real_time_factor' and self.clock_timer is not None:
+            self.step_budget_s = self._step_ns / _NS / value
+            period_s = self.step_budget_s
+            if self.lockstep_owner is not None:
+                period_s = max(period_s, _LOCKSTEP_TICK_S)
+            self.clock_timer.timer_period_ns = round(period_s * _NS)
+            if not self.clock_timer.is_canceled():  # (the harness steps it instead)
+                self.clock_timer.reset()
+        elif name == 'path_length':
+            self._path = deque(self._path, maxlen=value)  # keeps the newest
+        elif name == 'path_rate_hz':
+            self._path_every = max(1, round(self.params.rate_hz / value))
+        # The others are read where they are used: initial_* by ~/reset, lockstep_timeout by
+        # the lockstep owner, max_command_age by the stamped subscription.
 
     def _on_reset(self, request, response):
         p = self.params

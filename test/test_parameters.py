@@ -183,7 +183,8 @@ def test_first_bad_parameter_is_named(make_node):
 def test_descriptor_carries_description_and_range(make_node):
     node, _ = declare_with(make_node)
     speed = node.describe_parameter('speed')
-    assert speed.description == 'Forward speed [m/s].'
+    assert speed.description == 'Forward speed [m/s]. Read-only: set at start.'
+    assert speed.read_only
     assert [(r.from_value, r.to_value) for r in speed.floating_point_range] == [(0.0, 2.0)]
     assert not speed.integer_range
     assert '[0.0, 2.0]' in speed.additional_constraints
@@ -191,7 +192,7 @@ def test_descriptor_carries_description_and_range(make_node):
     assert '(0.0, 100.0]' in node.describe_parameter('rate').additional_constraints
 
     count = node.describe_parameter('count')
-    assert count.description == 'How many laps.'
+    assert count.description == 'How many laps. Read-only: set at start.'
     assert [(r.from_value, r.to_value, r.step) for r in count.integer_range] == [(1, 10, 1)]
     assert not count.floating_point_range
 
@@ -200,7 +201,7 @@ def test_descriptor_carries_description_and_range(make_node):
     assert '3 values' in covariance.additional_constraints
 
     mode = node.describe_parameter('mode')
-    assert mode.description == 'How to know when to stop.'
+    assert mode.description == 'How to know when to stop. Read-only: set at start.'
     assert 'one of timed, odom' in mode.additional_constraints
     assert not mode.floating_point_range and not mode.integer_range
 
@@ -209,11 +210,17 @@ def test_descriptor_carries_description_and_range(make_node):
     assert [(r.from_value, r.to_value) for r in goal.floating_point_range] == [(-100.0, 100.0)]
 
 
-def test_range_guards_later_changes(make_node):
-    node, _ = declare_with(make_node)
+def test_read_only_unless_live(make_node):
+    live_speed = Spec('speed', 0.5, 'Forward speed [m/s].', low=0.0, high=2.0, live=True)
+    node, values = declare_with(make_node, specs=(live_speed, RATE))
+    refused = node.set_parameters([Parameter('rate', value=20.0)])[0]
+    assert not refused.successful and 'read-only' in refused.reason
+    assert node.get_parameter('rate').value == 10.0
     assert not node.set_parameters([Parameter('speed', value=5.0)])[0].successful
     assert node.get_parameter('speed').value == 0.5
     assert node.set_parameters([Parameter('speed', value=1.5)])[0].successful
+    assert values.speed == 1.5
+    assert node.describe_parameter('speed').description == 'Forward speed [m/s].'
 
 
 # -- the simulator refuses bad values at start ---------------------------------------------------
