@@ -349,11 +349,15 @@ class UnicycleSim(Node):
             odom.pose.covariance = _covariance(value)
         elif name == 'twist_covariance_diagonal':
             odom.twist.covariance = _covariance(value)
-        elif name == 'odom_frame_id':
-            odom.header.frame_id = value
-            self._path.clear()  # a path is in one frame
-        elif name == 'base_frame_id':
-            odom.child_frame_id = value
+        elif name in ('odom_frame_id', 'base_frame_id'):
+            # As at start: in a namespace the default frame gets its prefix (robot1/odom).
+            default = next(spec.default for spec in PARAMETERS if spec.name == name)
+            frame = resolve_frame(self.get_namespace(), value, default)
+            if name == 'odom_frame_id':
+                odom.header.frame_id = frame
+                self._path.clear()  # a path is in one frame
+            else:
+                odom.child_frame_id = frame
         elif name == 'real_time_factor' and self.clock_timer is not None:
             self.step_budget_s = self._step_ns / _NS / value
             period_s = self.step_budget_s

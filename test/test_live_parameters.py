@@ -210,6 +210,21 @@ def test_frames_set_live_show_in_the_next_odometry(graph, sim_params):
         ('map', 'base_link')]
 
 
+def test_frames_set_live_in_a_namespace_are_resolved_as_at_start(graph):
+    sim = graph.add_clock_owner(UnicycleSim(
+        namespace='/robot1', context=graph.context, parameter_overrides=[
+            Parameter('publish_clock', value=True), Parameter('lockstep', value=False)]))
+    probe = graph.probe(namespace='/robot1')
+    params = Parameters(graph, probe, '/robot1/unicycle_sim')
+    graph.step()
+    assert probe.odom.header.frame_id == 'robot1/odom'
+    for text, expected in (('world', 'world'), ('odom', 'robot1/odom')):
+        assert params.set_param('odom_frame_id', text).successful
+        graph.step()
+        assert probe.odom.header.frame_id == expected
+        assert sim.params.odom_frame_id == text
+
+
 def test_other_live_parameters_take_effect(graph, sim_params):
     sim, probe, params = sim_params
     assert params.set_param('twist_covariance_diagonal', '[1, 2, 3, 4, 5, 6]').successful
