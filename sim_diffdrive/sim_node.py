@@ -104,8 +104,8 @@ PARAMETERS = (
          'With publish_clock: step in lockstep with the nodes that take part (every motion on '
          'sim time): no step before each has answered the last one. false: a free clock.'),
     Spec('lockstep_timeout', 2.0,
-         'With lockstep: wall seconds to wait for one participant before warning and going '
-         'on without it.', low=0.0, high=3600.0, low_open=True, live=True),
+         'With lockstep: how long to wait for one participant before warning and going on '
+         'without it [s, wall time].', low=0.0, high=3600.0, low_open=True, live=True),
     Spec('stamped', False, 'Subscribe to geometry_msgs/TwistStamped instead of Twist.'),
     Spec('max_command_age', 0.5,
          'With stamped: refuse a command stamped further than this from now [s]; 0 = accept all.',
