@@ -67,3 +67,4 @@ class OdomTransform:
         q = pose.orientation
         rotation.x, rotation.y, rotation.z, rotation.w = q.x, q.y, q.z, q.w
         self.publisher.publish(self._msg)
+        return self._msg

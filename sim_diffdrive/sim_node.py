@@ -48,6 +48,8 @@ from sim_diffdrive.parameters import ParameterError
 from sim_diffdrive.parameters import Spec
 from sim_diffdrive.participant import take_part
 from sim_diffdrive.runtime import run
+from sim_diffdrive.taps import open_taps
+from sim_diffdrive.taps import TAP_PARAMETERS
 from std_srvs.srv import Empty
 
 _NS = 1_000_000_000
@@ -114,7 +116,7 @@ PARAMETERS = (
          low=1, high=1000000, live=True),
     Spec('path_rate_hz', 10.0, 'Rate at which poses are added to the path [Hz].',
          low=0.0, high=1000.0, low_open=True, live=True),
-)
+) + TAP_PARAMETERS
 
 
 def _covariance(diagonal):
@@ -157,6 +159,8 @@ class UnicycleSim(Node):
         # (sent for a step whose /clock has not reached us yet), as (stamp_ns, linear, angular).
         self._early_commands = []
 
+        # Where else the simulator's traffic goes (an MCAP file, Foxglove): see taps.py.
+        self.taps = open_taps(self)
         self._odom_pub = self.create_publisher(Odometry, 'odom', 10)
         self._path_pub = self.create_publisher(Path, 'path', 1)
         self._tf = OdomTransform(self) if p.publish_tf else None
@@ -281,10 +285,14 @@ class UnicycleSim(Node):
         msg = ClockMsg()
         msg.clock = Time(nanoseconds=self._sim_ns).to_msg()
         self._clock_pub.publish(msg)
+        if self.taps:
+            self.taps.write(self._clock_pub.topic_name, msg, self._sim_ns)
 
     # -- commands ---------------------------------------------------------------------------
 
     def _on_twist_stamped(self, msg):
+        if self.taps:
+            self.taps.write(self._cmd_topic, msg, self.now_ns())
         stamp_ns = msg.header.stamp.sec * _NS + msg.header.stamp.nanosec
         age_ns = self.now_ns() - stamp_ns
         limit_ns = round(self.params.max_command_age * _NS)
@@ -298,6 +306,8 @@ class UnicycleSim(Node):
         self._on_twist(msg.twist, stamp_ns)
 
     def _on_twist(self, twist, stamp_ns=None):
+        if self.taps and stamp_ns is None:
+            self.taps.write(self._cmd_topic, twist, self.now_ns())
         linear = twist.linear.x
         angular = twist.angular.z
         if not (abs(linear) <= _COMMAND_LIMIT and abs(angular) <= _COMMAND_LIMIT):
@@ -398,8 +408,11 @@ class UnicycleSim(Node):
         msg.twist.twist.linear.x = m.linear
         msg.twist.twist.angular.z = m.angular
         self._odom_pub.publish(msg)
-        if self._tf is not None:
-            self._tf.publish(msg)
+        tf = self._tf.publish(msg) if self._tf is not None else None
+        if self.taps:
+            self.taps.write(self._odom_pub.topic_name, msg, self._integrated_ns)
+            if tf is not None:
+                self.taps.write(self._tf.publisher.topic_name, tf, self._integrated_ns)
         if self._odom_count % self._path_every == 0:
             self._record_path(msg)
         if self._odom_count % self._check_every == 0:
@@ -417,13 +430,23 @@ class UnicycleSim(Node):
         pose.pose.orientation.z = odom.pose.pose.orientation.z
         pose.pose.orientation.w = odom.pose.pose.orientation.w
         self._path.append(pose)
-        if self._path_pub.get_subscription_count() == 0:
+        if self._path_pub.get_subscription_count() == 0 and not self.taps.wants_path:
             # Converting a long path to a message is the costliest thing here: skip it unseen.
             return
         path = Path()
         path.header = odom.header
         path.poses = list(self._path)
         self._path_pub.publish(path)
+        if self.taps:
+            self.taps.write(self._path_pub.topic_name, path, self._integrated_ns)
+
+    def shutdown_hook(self):
+        """Close what the taps write (an MCAP file gets its index), whatever ended the run."""
+        self.taps.close()
+
+    def destroy_node(self):
+        self.taps.close()
+        return super().destroy_node()
 
 
 def main(args=None):

@@ -1,0 +1,110 @@
+# Copyright 2026 motion_challenges contributors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Where else the simulator's traffic goes: an MCAP file (record_file), Foxglove (foxglove_port).
+
+A tap has a ``name``, ``wants_path`` (whether the simulator should build the path message for
+it even when nobody subscribes on DDS), ``write(topic, msg, stamp_ns)`` — called with every
+command the simulator hears and every odometry, /tf, /clock and path message it publishes,
+before the message is reused — and ``close()``.  Both kinds are optional dependencies: when
+one is missing, or a file cannot be opened, the simulator says so once and runs without it.
+A tap that fails while writing (a full disk) is reported once and dropped; the simulation
+goes on.
+"""
+
+from sim_diffdrive.parameters import Spec
+
+TAP_PARAMETERS = (
+    Spec('record_file', '',
+         'Record cmd_vel, odom, /tf, /clock and path to this MCAP file (ROS 2 encoding: cdr '
+         'messages, ros2msg schemas; ros2 bag and Foxglove open it), closed with its index on '
+         'Ctrl-C and SIGTERM; empty = off. Needs the mcap package.'),
+    Spec('foxglove_port', 0,
+         'Serve the run live to Foxglove (WebSocket, foxglove.websocket.v1) on this port, e.g. '
+         "8765, Foxglove's usual one; 0 = off. Needs foxglove-sdk.",
+         low=0, high=65535),
+)
+
+
+class Taps:
+    """The simulator's taps; false when there are none, so the hot path costs one check."""
+
+    def __init__(self, node, taps):
+        self._node = node
+        self._taps = list(taps)
+
+    def __bool__(self):
+        return bool(self._taps)
+
+    @property
+    def wants_path(self):
+        return any(tap.wants_path for tap in self._taps)
+
+    def write(self, topic, msg, stamp_ns):
+        for tap in list(self._taps):
+            try:
+                tap.write(topic, msg, stamp_ns)
+            except Exception as error:  # whatever a file or a socket raises: report, go on
+                self._node.get_logger().error(
+                    f'{tap.name}: {type(error).__name__}: {error}; stopped writing to it, the '
+                    'simulation goes on')
+                self._taps.remove(tap)
+                self._close(tap)
+
+    def close(self):
+        """Close every tap (idempotent)."""
+        taps, self._taps = self._taps, []
+        for tap in taps:
+            self._close(tap)
+
+    def _close(self, tap):
+        try:
+            tap.close()
+        except Exception as error:  # closing must not stop the others from closing
+            self._node.get_logger().error(f'{tap.name}: closing failed: {error}')
+
+
+def open_taps(node):
+    """Return the Taps node.params ask for (record_file, foxglove_port)."""
+    p = node.params
+    taps = []
+    if p.record_file:
+        taps.append(_open(node, 'record_file', 'mcap', lambda: _recorder()(p.record_file, node)))
+    if p.foxglove_port:
+        taps.append(_open(node, 'foxglove_port', 'foxglove-sdk',
+                          lambda: _foxglove()(p.foxglove_port, node)))
+    return Taps(node, [tap for tap in taps if tap is not None])
+
+
+def _open(node, parameter, package, make):
+    try:
+        return make()
+    except ImportError as error:
+        node.get_logger().error(
+            f'{parameter} needs the Python package {package} ({error}); pip install {package}. '
+            'Running without it.')
+    except OSError as error:
+        node.get_logger().error(f'{parameter}: {error}. Running without it.')
+    return None
+
+
+def _recorder():
+    from sim_diffdrive.recorder import McapRecorder
+    return McapRecorder
+
+
+def _foxglove():
+    from sim_diffdrive.foxglove_live import FoxgloveLive
+    return FoxgloveLive
