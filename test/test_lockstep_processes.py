@@ -182,6 +182,9 @@ def test_a_killed_participant_is_left_behind_and_a_late_one_is_waited_for(graph,
     assert 'No cmd_vel for 0.5 s: stopping the robot' in sim_output
 
 
+# The default lockstep_timeout: on a loaded machine a participant may take longer than the
+# fixture's 0.5 s to answer, and this test asserts that nobody is dropped.
+@pytest.mark.parametrize('simulator', [2.0], indirect=True)
 def test_a_foreign_publisher_does_not_stall_the_clock(graph, simulator):
     sim, probe, _ = simulator
     # A teleop that does not take part, publishing on the wall clock.
