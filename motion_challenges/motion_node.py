@@ -63,8 +63,9 @@ COMMON_PARAMETERS = (
          '[s, wall time].',
          low=0.0, high=3600.0, low_open=True, live=True),
     Spec('plot_file', '',
-         'Write a PNG of the run (trajectory, start, end and goal) here; empty = no plot. '
-         'Needs matplotlib.', live=True),
+         'Write a PNG of the run here: the path (start, end and goal) beside the heading and '
+         'the commanded and achieved speeds over time; empty = no plot. Needs matplotlib.',
+         live=True),
     Spec('stamped', False,
          'Publish geometry_msgs/TwistStamped, stamped with the node clock, instead of Twist '
          "(ros2_control's diff_drive_controller takes only TwistStamped)."),
@@ -94,6 +95,8 @@ class OdomPose(Pose):
         super().__init__(p.position.x, p.position.y, yaw_from_quaternion(
             p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w),
             msg.header.stamp.sec * _NS + msg.header.stamp.nanosec)
+        # What odometry says the robot did, for plot_file: (linear.x, angular.z).
+        self.twist = (msg.twist.twist.linear.x, msg.twist.twist.angular.z)
 
 
 class MotionNode(Node):
@@ -116,7 +119,11 @@ class MotionNode(Node):
             Odometry, 'odom', self._on_odom, 50).topic_name
         self.odom = None
         self._odom_wall = None
-        self.trajectory = []
+        self.trajectory = []  # (x, y, yaw) of each odometry while running or settling
+        # For plot_file, over the same span: (stamp_ns, yaw, linear, angular) of each odometry
+        # and (time_ns, linear, angular) of each command sent.
+        self.odometry_samples = []
+        self.sent_commands = []
         self.start_odom = None
         self.turned = YawAccumulator()
         self.commands = CommandLog()
@@ -195,7 +202,10 @@ class MotionNode(Node):
         else:
             msg = twist
         self.cmd_pub.publish(msg)
-        self.commands.add(self.now_ns(), linear, angular)
+        now_ns = self.now_ns()
+        self.commands.add(now_ns, linear, angular)
+        if self.state in (MotionState.RUNNING, MotionState.SETTLING):
+            self.sent_commands.append((now_ns, float(linear), float(angular)))
 
     def stop_robot(self):
         self.publish_command(0.0, 0.0)
@@ -234,6 +244,7 @@ class MotionNode(Node):
         self.commands.forget_before(odom.stamp_ns)
         if self.state in (MotionState.RUNNING, MotionState.SETTLING):
             self.trajectory.append((odom.x, odom.y, odom.yaw))
+            self.odometry_samples.append((odom.stamp_ns, odom.yaw, *odom.twist))
 
     def _on_time_jump(self, jump):
         self._early_odoms.clear()
@@ -342,13 +353,19 @@ class MotionNode(Node):
 
     def _plot(self, end_odom, achieved):
         from motion_challenges.plotting import plot_run
+        from motion_challenges.plotting import time_series
         start = self.start_odom
+        goal = self.goal_pose(start) if start else None
+        # The odometry the motion started on comes first: the heading starts from its yaw.
+        odometry = ([(start.stamp_ns, start.yaw, *start.twist)] if start else []) + [
+            s for s in self.odometry_samples if not start or s[0] > start.stamp_ns]
         try:
             plot_run(self.params.plot_file, self.trajectory,
                      start=(start.x, start.y, start.yaw) if start else None,
                      end=(end_odom.x, end_odom.y, end_odom.yaw) if end_odom else None,
-                     goal=self.goal_pose(start) if start else None,
-                     title=f'{self.get_name()}: {achieved}')
+                     goal=goal, title=f'{self.get_name()}: {achieved}',
+                     series=time_series(odometry, self.sent_commands, self.start_ns,
+                                        goal[2] if goal else None))
         except (ImportError, OSError) as error:
             self.get_logger().error(f'Could not write plot_file: {error}')
             return

@@ -12,46 +12,193 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""Draw a motion's run to a PNG (matplotlib is optional and imported only here)."""
+"""
+Draw a motion's run to a PNG (matplotlib is optional and imported only here).
 
+A run is drawn as its path (x, y with start, end and goal poses) next to three panels over
+simulated time from the motion's start: the heading (unwrapped, so a turn of -720 deg ends at
+-720 deg) with the goal heading, and the linear and angular speeds, commanded (the Twists sent,
+as steps: each holds until the next) and achieved (odometry's twist).  ``time_series`` prepares
+those series from the recorded samples and is plain code, tested without matplotlib.
+"""
+
+from collections import namedtuple
 import math
 
-# Arrow length for poses, as a fraction of the plot's extent.
-_ARROW = 0.06
-_MARKER_SIZE = {'D': 6, 's': 14, 'o': 9}
+_NS = 1e9
+# Arrows of poses: a fraction of the path's extent, but never shorter than _MIN_ARROW [m], so
+# that a turn in place (a path that is a dot) still shows where the robot pointed.
+_ARROW = 0.08
+_MIN_ARROW = 0.1
+# The path panel spans at least this much [m] in each direction.
+_MIN_VIEW = 0.35
+_MARKER_SIZE = {'D': 7, 's': 15, 'o': 10}
+# Poses that coincide (the end on the goal, a turn in place) keep every arrow visible: the
+# first drawn are the widest.
+_ARROW_STYLE = {'goal': {'lw': 6.0, 'alpha': 0.45, 'mutation_scale': 26},
+                'start': {'lw': 3.5, 'alpha': 0.9, 'mutation_scale': 20},
+                'end': {'lw': 1.5, 'alpha': 1.0, 'mutation_scale': 13}}
+# Commanded wide and light under the achieved line: where they agree, both show.
+_ACHIEVED = {'color': 'tab:blue', 'lw': 1.4, 'label': 'achieved (odometry)'}
+_COMMANDED = {'color': 'tab:gray', 'lw': 4.0, 'alpha': 0.5, 'label': 'commanded'}
+_GOAL = {'color': 'tab:orange', 'lw': 1.6, 'ls': '--', 'label': 'goal'}
+# Heading ticks: the smallest of these steps that gives at most 7 intervals [deg].
+_HEADING_STEPS = (15.0, 30.0, 45.0, 90.0, 180.0, 360.0, 720.0, 1440.0)
+
+RunSeries = namedtuple('RunSeries', [
+    't',  # odometry times [s from the motion's start]
+    'heading_deg',  # odometry yaw, unwrapped [deg]
+    'linear',  # odometry's twist, linear.x [m/s]
+    'angular_deg',  # odometry's twist, angular.z [deg/s]
+    'command_linear',  # (times [s], values [m/s]) of the commanded linear.x as a step series
+    'command_angular',  # (times [s], values [deg/s]) of the commanded angular.z, likewise
+    'goal_heading_deg',  # the goal yaw on the unwrapped heading's branch [deg], or None
+])
+
+
+def unwrap_deg(yaws):
+    """Return yaws [rad] as continuous degrees: no jump of 360 where the angle wraps."""
+    headings = []
+    for yaw in yaws:
+        if headings:
+            last = math.radians(headings[-1])
+            yaw = last + math.remainder(yaw - last, 2.0 * math.pi)
+        headings.append(math.degrees(yaw))
+    return headings
+
+
+def step_series(times, values, end=None):
+    """
+    Return (times, values) that draw values[i] held from times[i] until times[i + 1].
+
+    The last value holds until end (when later than its time).  A repeated value adds no step.
+    """
+    xs, ys = [], []
+    for t, value in zip(times, values):
+        if ys and value == ys[-1]:
+            continue
+        if ys:
+            xs.append(t)
+            ys.append(ys[-1])
+        xs.append(t)
+        ys.append(value)
+    if ys and end is not None and end > xs[-1]:
+        xs.append(end)
+        ys.append(ys[-1])
+    return xs, ys
+
+
+def time_series(odometry, commands=(), start_ns=None, goal_yaw=None):
+    """
+    Turn the samples of a run into the RunSeries to draw.
+
+    odometry: [(stamp_ns, yaw [rad], linear [m/s], angular [rad/s])]; commands: [(time_ns,
+    linear, angular)] as sent; both on the same (simulated) clock.  Times count from start_ns
+    (default: the first sample).  goal_yaw [rad] goes on the heading's branch nearest the last
+    heading, so that a goal of turning twice round is drawn at -720 deg, not at 0.
+    """
+    odometry = sorted(odometry, key=lambda sample: sample[0])
+    commands = sorted(commands, key=lambda command: command[0])
+    if start_ns is None:
+        firsts = [samples[0][0] for samples in (odometry, commands) if samples]
+        start_ns = min(firsts) if firsts else 0
+    t = [(stamp - start_ns) / _NS for stamp, *_ in odometry]
+    heading = unwrap_deg([yaw for _, yaw, _, _ in odometry])
+    command_t = [(stamp - start_ns) / _NS for stamp, *_ in commands]
+    end = max(t[-1:] + command_t[-1:]) if t or command_t else None
+    goal_deg = None
+    if goal_yaw is not None:
+        goal_deg = math.degrees(goal_yaw)
+        if heading:
+            goal_deg = heading[-1] + math.degrees(
+                math.remainder(goal_yaw - math.radians(heading[-1]), 2.0 * math.pi))
+    return RunSeries(
+        t, heading, [v for _, _, v, _ in odometry],
+        [math.degrees(w) for _, _, _, w in odometry],
+        step_series(command_t, [v for _, v, _ in commands], end),
+        step_series(command_t, [math.degrees(w) for _, _, w in commands], end),
+        goal_deg)
 
 
 def _arrow(axes, pose, size, color, label, marker):
     x, y, yaw = pose
     axes.annotate('', xy=(x + size * math.cos(yaw), y + size * math.sin(yaw)), xytext=(x, y),
-                  arrowprops={'arrowstyle': '->', 'color': color, 'lw': 2})
+                  arrowprops=dict(_ARROW_STYLE[label], arrowstyle='-|>', color=color,
+                                  shrinkA=0, shrinkB=0))
     # Hollow markers of different sizes keep a goal visible under an end that hit it.
     axes.plot([x], [y], marker, color=color, markerfacecolor='none',
               markersize=_MARKER_SIZE[marker], markeredgewidth=2, label=label)
 
 
-def draw_run(axes, trajectory, start=None, end=None, goal=None, title=''):
+def draw_run(axes, trajectory, start=None, end=None, goal=None, title='', legend=True):
     """Draw a trajectory [(x, y, yaw), ...] with start, end and goal poses on axes."""
     xs = [p[0] for p in trajectory]
     ys = [p[1] for p in trajectory]
     axes.plot(xs, ys, '-', color='tab:blue', lw=1.5, label='driven (odometry)')
-    extent = max([1e-3] + [abs(v) for v in xs + ys]) if trajectory else 1.0
-    size = _ARROW * 2.0 * extent
-    for pose, color, label, marker in ((start, 'tab:green', 'start', 'D'),
-                                       (goal, 'tab:orange', 'goal', 's'),
-                                       (end, 'tab:red', 'end', 'o')):
-        if pose is not None:
-            _arrow(axes, pose, size, color, label, marker)
+    poses = [(pose, color, label, marker) for pose, color, label, marker in (
+        (goal, 'tab:orange', 'goal', 's'), (start, 'tab:green', 'start', 'D'),
+        (end, 'tab:red', 'end', 'o')) if pose is not None]
+    px = xs + [pose[0] for pose, *_ in poses] or [0.0]
+    py = ys + [pose[1] for pose, *_ in poses] or [0.0]
+    span = max(max(px) - min(px), max(py) - min(py))
+    size = max(_ARROW * span, _MIN_ARROW)
+    for pose, color, label, marker in poses:
+        _arrow(axes, pose, size, color, label, marker)
+    # Arrows do not count in matplotlib's limits: the view holds their tips, and a minimum.
+    px += [x + size * math.cos(yaw) for (x, _, yaw), *_ in poses]
+    py += [y + size * math.sin(yaw) for (_, y, yaw), *_ in poses]
+    for setter, low, high in ((axes.set_xlim, min(px), max(px)),
+                              (axes.set_ylim, min(py), max(py))):
+        half = max(0.55 * (high - low), 0.5 * _MIN_VIEW)
+        setter(0.5 * (low + high) - half, 0.5 * (low + high) + half)
     axes.set_aspect('equal', adjustable='datalim')
     axes.set_xlabel('x [m]')
     axes.set_ylabel('y [m]')
     axes.grid(True, alpha=0.3)
-    axes.legend(loc='best', fontsize='small')
-    axes.set_title(title, fontsize='small', wrap=True)
+    if legend:
+        axes.legend(loc='best', fontsize='small')
+    if title:
+        axes.set_title(title, fontsize='small', wrap=True)
 
 
-def plot_run(filename, trajectory, start=None, end=None, goal=None, title=''):
-    """Write one run to filename as a PNG; raises ImportError without matplotlib."""
+def draw_series(heading_axes, linear_axes, angular_axes, series, legend=True):
+    """Draw a RunSeries: heading, linear and angular speed over time on three axes."""
+    from matplotlib.ticker import MultipleLocator
+
+    heading_axes.plot(series.t, series.heading_deg, **_ACHIEVED)
+    if series.goal_heading_deg is not None:
+        heading_axes.axhline(series.goal_heading_deg, **_GOAL)
+    heading_axes.set_ylabel('heading [deg]')
+    # Multiples of 45 or 90 deg for turns; matplotlib's choice for a small wobble.
+    values = series.heading_deg + [series.goal_heading_deg] * (
+        series.goal_heading_deg is not None)
+    if values and max(values) - min(values) > 30.0:
+        step = next((s for s in _HEADING_STEPS if (max(values) - min(values)) / s <= 7.0),
+                    _HEADING_STEPS[-1])
+        heading_axes.yaxis.set_major_locator(MultipleLocator(step))
+    for axes, (times, values), achieved, unit in (
+            (linear_axes, series.command_linear, series.linear, 'linear [m/s]'),
+            (angular_axes, series.command_angular, series.angular_deg, 'angular [deg/s]')):
+        axes.plot(times, values, solid_joinstyle='miter', **_COMMANDED)
+        axes.plot(series.t, achieved, **_ACHIEVED)
+        axes.set_ylabel(unit)
+    angular_axes.set_xlabel('time since the start [s, simulated]')
+    for axes in (heading_axes, linear_axes, angular_axes):
+        axes.grid(True, alpha=0.3)
+        axes.margins(x=0.02, y=0.12)
+        if legend:
+            axes.legend(loc='best', fontsize='x-small')
+    for axes in (heading_axes, linear_axes):
+        axes.tick_params(labelbottom=False)
+
+
+def plot_run(filename, trajectory, start=None, end=None, goal=None, title='', series=None):
+    """
+    Write one run to filename as a PNG; raises ImportError without matplotlib.
+
+    With series (a RunSeries, see time_series) the path has the heading and the speeds over
+    time next to it; without, the path alone.
+    """
     try:
         import matplotlib
     except ImportError:
@@ -60,10 +207,23 @@ def plot_run(filename, trajectory, start=None, end=None, goal=None, title=''):
     matplotlib.use('Agg')
     from matplotlib import pyplot
 
-    figure, axes = pyplot.subplots(figsize=(6.4, 6.4))
+    if series is None:
+        figure, axes = pyplot.subplots(figsize=(6.4, 6.4))
+    else:
+        figure = pyplot.figure(figsize=(12.8, 6.4))
     try:
-        draw_run(axes, trajectory, start, end, goal, title)
-        figure.tight_layout()
+        if series is None:
+            draw_run(axes, trajectory, start, end, goal, title)
+            figure.tight_layout()
+        else:
+            grid = figure.add_gridspec(3, 2, width_ratios=(1.0, 1.15))
+            path_axes = figure.add_subplot(grid[:, 0])
+            heading_axes = figure.add_subplot(grid[0, 1])
+            draw_run(path_axes, trajectory, start, end, goal)
+            draw_series(heading_axes, figure.add_subplot(grid[1, 1], sharex=heading_axes),
+                        figure.add_subplot(grid[2, 1], sharex=heading_axes), series)
+            figure.suptitle(title, fontsize='medium', wrap=True)
+            figure.tight_layout()
         figure.savefig(filename, dpi=100)
     finally:
         pyplot.close(figure)

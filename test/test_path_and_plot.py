@@ -16,6 +16,13 @@
 
 import math
 
+from motion_challenges.circle_back_and_forth import CircleBackAndForth
+from motion_challenges.odom_out_and_back import OdomOutAndBack
+from motion_challenges.plotting import plot_run
+from motion_challenges.plotting import step_series
+from motion_challenges.plotting import time_series
+from motion_challenges.plotting import unwrap_deg
+from motion_challenges.prompts import RotationRequest
 from motion_challenges.rotate_robot import ask_missing
 from motion_challenges.rotate_robot import RotateRobot
 from motion_challenges.timed_out_and_back import TimedOutAndBack
@@ -52,13 +59,26 @@ def run_with_plot(graph, node_class, plot_file, **params):
     return node
 
 
+# plot_file's figure: 12.8 x 6.4 inches at 100 dpi (rows, columns, RGBA).
+PLOT_SHAPE = (640, 1280, 4)
+NS = 1_000_000_000
+
+
+def assert_png(path, shape):
+    image = pytest.importorskip('matplotlib.image')
+    assert path.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
+    # Far more than an empty canvas: a path and three panels of curves and labels.
+    assert path.stat().st_size > 30_000
+    assert image.imread(path).shape == shape
+
+
 def test_motion_writes_a_png_of_its_run(graph, tmp_path):
     pytest.importorskip('matplotlib')
     plot = tmp_path / 'run.png'
     node = run_with_plot(graph, TimedOutAndBack, plot, goal_distance=0.5, pause=0.2)
     graph.step_until(lambda: node.done, sim_timeout=30.0)
     assert node.exit_code == 0
-    assert plot.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
+    assert_png(plot, PLOT_SHAPE)
     # The trajectory drawn is the odometry of the run: out 0.5 m and back.
     xs = [x for x, _, _ in node.trajectory]
     assert max(xs) == pytest.approx(0.5, abs=1e-9)
@@ -74,3 +94,94 @@ def test_unwritable_plot_file_is_reported_not_fatal(graph, tmp_path):
     graph.step_until(lambda: node.done, sim_timeout=10.0)
     assert node.exit_code == 0
     assert not (tmp_path / 'missing').exists()
+
+
+@pytest.mark.parametrize('node_class,params', [
+    (RotateRobot, {'mode': 'odom'}),
+    (OdomOutAndBack, {'goal_distance': 0.5}),
+    (CircleBackAndForth, {'cycles': 1, 'half_period': 3.0}),
+], ids=['rotate_720_clockwise', 'odom_out_and_back', 'circle'])
+def test_every_motion_plots_path_heading_and_speeds(graph, tmp_path, node_class, params):
+    pytest.importorskip('matplotlib')
+    plot = tmp_path / f'{node_class.__name__}.png'
+    node = run_with_plot(graph, node_class, plot, **params)
+    if node_class is RotateRobot:
+        node.start(RotationRequest(90.0, 720.0, True))
+    graph.step_until(lambda: node.done, sim_timeout=40.0)
+    assert node.exit_code == 0
+    assert_png(plot, PLOT_SHAPE)
+    # What was recorded for it: odometry (stamp, yaw, twist) and the commands, all on sim time
+    # from the start on, the last command the stop.
+    assert len(node.odometry_samples) == len(node.trajectory) > 10
+    assert all(t >= node.start_ns for t, *_ in node.odometry_samples + node.sent_commands)
+    assert node.sent_commands[0][0] == node.start_ns
+    assert node.sent_commands[-1][1:] == (0.0, 0.0)
+    series = time_series([(node.start_odom.stamp_ns, node.start_odom.yaw, 0.0, 0.0)]
+                         + node.odometry_samples, node.sent_commands, node.start_ns)
+    if node_class is RotateRobot:
+        assert series.heading_deg[-1] == pytest.approx(-720.0, abs=0.01)
+        assert min(series.command_angular[1]) == pytest.approx(-90.0)
+        assert max(series.linear) == 0.0
+    else:
+        assert max(series.command_linear[1]) > 0.0
+
+
+def test_unwrap_deg_follows_the_turn_across_the_wrap():
+    yaws = [math.radians(d) for d in (170.0, -170.0, -10.0, 10.0)]
+    assert unwrap_deg(yaws) == pytest.approx([170.0, 190.0, 350.0, 370.0])
+    assert unwrap_deg([]) == []
+
+
+def test_step_series_holds_each_command_until_the_next():
+    xs, ys = step_series([0.0, 0.02, 0.04, 0.06], [0.5, 0.5, 0.0, 0.0], end=0.1)
+    # A repeated value adds no step; the last value holds until the end.
+    assert xs == [0.0, 0.04, 0.04, 0.1]
+    assert ys == [0.5, 0.5, 0.0, 0.0]
+    assert step_series([], [], end=1.0) == ([], [])
+    assert step_series([1.0], [2.0]) == ([1.0], [2.0])
+
+
+def test_time_series_of_a_720_deg_clockwise_turn():
+    """Hand-made samples: turn -720 deg at -90 deg/s in 8 s, odometry every 0.5 s."""
+    start_ns = 5 * NS
+    rate = math.radians(-90.0)
+    odometry = []
+    for i in range(19):
+        t = 0.5 * i
+        turning = 0.0 < t <= 8.0
+        yaw = math.remainder(rate * min(t, 8.0), 2.0 * math.pi)  # as odometry wraps it
+        odometry.append((start_ns + int(t * NS), yaw, 0.0, rate if turning else 0.0))
+    commands = [(start_ns + int(0.02 * i * NS), 0.0, rate) for i in range(400)]
+    commands.append((start_ns + 8 * NS, 0.0, 0.0))
+    # The goal as the motion gives it (start yaw - 4 pi) or wrapped: the same line.
+    for goal_yaw in (-4.0 * math.pi, 0.0):
+        series = time_series(odometry, commands, start_ns, goal_yaw)
+        assert series.t[0] == 0.0 and series.t[-1] == 9.0
+        assert series.heading_deg == pytest.approx(
+            [-90.0 * min(0.5 * i, 8.0) for i in range(19)], abs=1e-9)
+        assert series.heading_deg[-1] == pytest.approx(-720.0)
+        assert series.goal_heading_deg == pytest.approx(-720.0)
+        assert series.angular_deg[1] == pytest.approx(-90.0)
+        # Commanded: -90 deg/s from 0 to 8 s, then 0 until the last odometry (9 s).
+        assert series.command_angular[0] == pytest.approx([0.0, 8.0, 8.0, 9.0])
+        assert series.command_angular[1] == pytest.approx([-90.0, -90.0, 0.0, 0.0])
+        assert series.command_linear == ([0.0, 9.0], [0.0, 0.0])
+
+
+def test_time_series_without_a_start_counts_from_the_first_sample():
+    series = time_series([(2 * NS, 0.0, 0.1, 0.0), (3 * NS, 0.0, 0.2, 0.0)],
+                         [(NS, 0.3, 0.0)])
+    assert series.t == [1.0, 2.0]
+    assert series.command_linear == ([0.0, 2.0], [0.3, 0.3])
+    assert series.goal_heading_deg is None
+    empty = time_series([], [])
+    assert empty.t == [] and empty.command_linear == ([], [])
+
+
+def test_plot_run_without_series_draws_the_path_alone(tmp_path):
+    pytest.importorskip('matplotlib')
+    plot = tmp_path / 'path.png'
+    plot_run(str(plot), [(0.0, 0.0, 0.0), (1.0, 0.0, 0.0)], start=(0.0, 0.0, 0.0),
+             end=(1.0, 0.0, 0.0), goal=(1.0, 0.0, 0.0), title='path only')
+    image = pytest.importorskip('matplotlib.image')
+    assert image.imread(plot).shape == (640, 640, 4)
