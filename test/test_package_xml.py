@@ -39,8 +39,14 @@ ROSDEP_KEYS = {
     'yaml': 'python3-yaml',
 }
 # ROS packages a Python module of the same name comes from.
-ROS_PACKAGES = {'geometry_msgs', 'nav_msgs', 'rcl_interfaces', 'rclpy', 'rosgraph_msgs',
-                'std_msgs', 'std_srvs', 'tf2_msgs'}
+ROS_PACKAGES = {'ament_index_python', 'geometry_msgs', 'nav_msgs', 'rcl_interfaces', 'rclpy',
+                'rosgraph_msgs', 'std_msgs', 'std_srvs', 'tf2_msgs'}
+# Optional dependencies (pip packages without a rosdep key): each imported only by the module of
+# the feature that needs it, which the simulator imports only when that feature is asked for and
+# runs without when it is missing (sim_diffdrive/taps.py).  Not exec_depends.
+OPTIONAL = {
+    'mcap': ['sim_diffdrive/recorder.py'],  # record_file
+}
 
 
 def third_party_imports():
@@ -78,12 +84,21 @@ def test_every_imported_module_is_an_exec_depend():
     exec_depends = declared('exec_depend')
     missing = {}
     for module, files in sorted(third_party_imports().items()):
+        if module in OPTIONAL:
+            continue
         assert module in ROSDEP_KEYS or module in ROS_PACKAGES, (
             f'{module} (imported by {files}): add its rosdep key to ROSDEP_KEYS')
         key = ROSDEP_KEYS.get(module, module)
         if key not in exec_depends:
             missing[key] = files
     assert not missing, f'imported but not declared as <exec_depend>: {missing}'
+
+
+def test_optional_dependencies_stay_in_their_modules():
+    imports = third_party_imports()
+    for module, files in OPTIONAL.items():
+        assert imports.get(module) == files, f'{module}: imported by {imports.get(module)}'
+        assert module not in declared('exec_depend')
 
 
 def test_no_exec_depend_goes_unused():
