@@ -29,6 +29,10 @@ motion's answer to every clock step), so --rtf is only an upper bound and every 
 on a loaded machine too.  The exit code is 1 when a motion process failed or timed out, 0
 otherwise.
 
+Each simulator records its run to ``out/<motion>.mcap`` under the repository (record_file:
+odometry, /tf, /clock, path and the commands it heard; needs the mcap package), to open in
+Foxglove or with ``ros2 bag info``; --record-dir '' turns that off.
+
 The demo runs on its own ROS domain (random in 1..100, or SIM_GRAPH_DOMAIN_ID) with
 localhost-only discovery, so it never drives anyone else's robot.  Usage:
 ``python tools/demo.py [--rtf 50]`` with the venv active (``make demo``).
@@ -40,6 +44,7 @@ from dataclasses import dataclass
 import math
 import os
 from pathlib import Path
+import re
 import shutil
 import sys
 import tempfile
@@ -77,6 +82,14 @@ MOTIONS = (
 
 # Wall seconds allowed on top of a motion's simulated duration (process start, discovery).
 _START_ALLOWANCE = 15.0
+# Where the runs are recorded, like make bench's out/bench.json (git ignores out/).
+RECORD_DIR = Path(__file__).resolve().parents[1] / 'out'
+
+
+def recording_path(motion, record_dir):
+    """Return the MCAP file of a motion's run: its label as a file name."""
+    return Path(record_dir) / (re.sub(r'[^a-z0-9]+', '_', motion.label.lower()).strip('_')
+                               + '.mcap')
 
 
 @dataclass
@@ -113,15 +126,16 @@ def movement(probe):
             (stamp_s(end[0]), end[1]) if end else None)
 
 
-def run_motion(motion, graph, rtf, log_dir):
+def run_motion(motion, graph, rtf, log_dir, record_dir=None):
     """Run one motion against a fresh simulator and return what odometry showed."""
     probe = graph.probe('demo_observer', listen_only=True)
     sim_log = Path(log_dir) / 'unicycle_sim.log'
     motion_log = Path(log_dir) / f'{motion.executable}.log'
     sim = process = None
     try:
+        recording = (f'record_file:={recording_path(motion, record_dir)}',) if record_dir else ()
         sim = harness.start('unicycle_sim', *harness.ros_params(
-            'publish_clock:=true', f'real_time_factor:={rtf}'), log_path=sim_log)
+            'publish_clock:=true', f'real_time_factor:={rtf}', *recording), log_path=sim_log)
         # Start the motion only once the start pose is known.
         if not graph.spin_until(lambda: probe.odom is not None, _START_ALLOWANCE):
             print_tail('no odometry from unicycle_sim', sim_log)
@@ -220,6 +234,32 @@ def print_table(results):
             print('  '.join('-' * w for w in widths))
 
 
+def record_dir_for(option):
+    """Return the directory to record to (created), or None: turned off or no mcap package."""
+    if not option:
+        return None
+    try:
+        import mcap  # noqa: F401  (the simulator's record_file needs it)
+    except ImportError:
+        print('No recordings: the mcap package is not installed (pip install mcap).')
+        return None
+    record_dir = Path(option).resolve()
+    record_dir.mkdir(parents=True, exist_ok=True)
+    return record_dir
+
+
+def print_recordings(record_dir):
+    """Say where this run's MCAP files are and how to open them."""
+    files = [recording_path(motion, record_dir) for motion in MOTIONS]
+    files = [f for f in files if f.exists()]
+    if not files:
+        return
+    sizes = ', '.join(f'{f.name} ({f.stat().st_size / 1e6:.1f} MB)' for f in files)
+    print(f'Recordings (MCAP) in {record_dir}: {sizes}.')
+    print('Open in Foxglove (File \N{RIGHTWARDS ARROW} Open) or `ros2 bag info <file>` on a ROS '
+          'machine.')
+
+
 def main():
     parser = argparse.ArgumentParser(
         description='Run every motion against unicycle_sim over DDS on simulated time and '
@@ -229,6 +269,9 @@ def main():
                              '(default: %(default)s)')
     parser.add_argument('--figure', default='demo.png',
                         help='PNG with every trajectory (default: %(default)s)')
+    parser.add_argument('--record-dir', default=str(RECORD_DIR),
+                        help="record each run to an MCAP file here ('': no recording; "
+                             'default: %(default)s)')
     options = parser.parse_args()
     missing = [e for e in {'unicycle_sim'} | {m.executable for m in MOTIONS}
                if shutil.which(e) is None]
@@ -241,13 +284,14 @@ def main():
     graph = SimGraph()
     print(f'ROS_DOMAIN_ID={os.environ["ROS_DOMAIN_ID"]}, localhost only, real-time factor '
           f'{options.rtf:g}', flush=True)
+    record_dir = record_dir_for(options.record_dir)
     wall_start = time.monotonic()
     results = []
     try:
         with tempfile.TemporaryDirectory(prefix='motion_demo_') as log_dir:
             for i, motion in enumerate(MOTIONS, 1):
                 print(f'[{i}/{len(MOTIONS)}] {motion.label} ...', flush=True)
-                results.append(run_motion(motion, graph, options.rtf, log_dir))
+                results.append(run_motion(motion, graph, options.rtf, log_dir, record_dir))
     except KeyboardInterrupt:
         print('Interrupted')
         return 130
@@ -262,6 +306,8 @@ def main():
         print(f'Trajectories: {os.path.abspath(options.figure)}')
     else:
         print('No figure: matplotlib is not installed (pip install matplotlib).')
+    if record_dir is not None:
+        print_recordings(record_dir)
     failed = [r.motion.label for r in results if r.exit_code != 0]
     if failed:
         print('Failed: ' + ', '.join(failed))
