@@ -142,7 +142,7 @@ def test_a_generic_ros2_reader_decodes_every_message(graph, tmp_path):
     assert decoded['/tf'][-1].transforms[0].child_frame_id == odom.child_frame_id
 
 
-@pytest.mark.parametrize('signum', [signal.SIGTERM, signal.SIGINT])
+@pytest.mark.parametrize('signum', [signal.SIGTERM, signal.SIGINT], ids=['SIGTERM', 'SIGINT'])
 def test_the_file_is_complete_after_the_process_is_stopped(graph, tmp_path, signum):
     path = tmp_path / 'run.mcap'
     sim = start('unicycle_sim', *ros_params(f'record_file:={path}', 'cmd_vel_timeout:=0.0'))
