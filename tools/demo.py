@@ -50,11 +50,13 @@ import sys
 import tempfile
 import time
 
+from geometry_msgs.msg import Twist
 from sim_diffdrive import harness
 from sim_diffdrive.harness import is_moving
 from sim_diffdrive.harness import pose_of
 from sim_diffdrive.harness import SimGraph
 from sim_diffdrive.harness import stamp_s
+from sim_diffdrive.harness import twist_of
 
 Pose = namedtuple('Pose', 'x y yaw')
 
@@ -101,6 +103,10 @@ class Result:
     sim_s: float = None
     wall_s: float = None
     trajectory: list = None
+    # For the figure, on simulated time [ns]: (stamp, yaw, linear, angular) of each odometry
+    # and (time heard, linear, angular) of each command on cmd_vel.
+    odometry: list = None
+    commands: list = None
 
 
 def print_tail(what, log_path, lines=8):
@@ -126,9 +132,19 @@ def movement(probe):
             (stamp_s(end[0]), end[1]) if end else None)
 
 
+def record_commands(probe):
+    """Return the list probe will fill with (sim ns, linear, angular) of each cmd_vel heard."""
+    heard = []
+    # On the probe's clock (sim time): the commanded speeds line up with odometry's stamps.
+    probe.create_subscription(Twist, 'cmd_vel', lambda msg: heard.append(
+        (probe.get_clock().now().nanoseconds, msg.linear.x, msg.angular.z)), 200)
+    return heard
+
+
 def run_motion(motion, graph, rtf, log_dir, record_dir=None):
     """Run one motion against a fresh simulator and return what odometry showed."""
     probe = graph.probe('demo_observer', listen_only=True)
+    commands = record_commands(probe)
     sim_log = Path(log_dir) / 'unicycle_sim.log'
     motion_log = Path(log_dir) / f'{motion.executable}.log'
     sim = process = None
@@ -156,7 +172,10 @@ def run_motion(motion, graph, rtf, log_dir, record_dir=None):
         graph.spin_until(lambda: len(probe.odoms) > seen + 2 and not is_moving(probe.odom), 2.0)
         result = Result(motion, exit_code, Pose(*pose_of(probe.odoms[0])),
                         Pose(*pose_of(probe.odom)),
-                        trajectory=[pose_of(odom) for odom in probe.odoms])
+                        trajectory=[pose_of(odom) for odom in probe.odoms],
+                        odometry=[(int(stamp_s(odom) * 1e9), pose_of(odom)[2], *twist_of(odom))
+                                  for odom in probe.odoms],
+                        commands=commands)
         move_start, move_end = movement(probe)
         if move_start and move_end:
             result.sim_s = move_end[0] - move_start[0]
@@ -196,8 +215,41 @@ def row(result):
             *seconds, exit_code]
 
 
+def run_series(result):
+    """
+    Return the RunSeries of a result, from the motion's start to its rest; None without odometry.
+
+    Time counts from the motion's start: the last odometry at rest before the robot moved, or
+    the first moving command if heard before (commands are those heard once this process has
+    discovered the motion's publisher, which can be late: the commanded steps may begin late).  A little before the
+    start stays in view, and half a second after the robot came to rest.
+    """
+    from motion_challenges.plotting import time_series
+
+    commands = result.commands or []
+    odometry = result.odometry or []
+    moving = [t for t, v, w in commands if (v, w) != (0.0, 0.0)]
+    driven = [i for i, (_, _, v, w) in enumerate(odometry) if (v, w) != (0.0, 0.0)]
+    if not odometry or not (moving or driven):
+        return None
+    # The rest before moving on odometry, or the first moving command if heard before it.
+    starts = moving[:1] + ([odometry[max(driven[0] - 1, 0)][0]] if driven else [])
+    start_ns = min(starts)
+    stops = [t for t, *_ in commands if moving and t > moving[-1]]
+    high = max(stops[:1] + [odometry[driven[-1]][0] if driven else start_ns]) + 500_000_000
+    low = start_ns - 200_000_000
+    return time_series([s for s in odometry if low <= s[0] <= high],
+                       [c for c in commands if low <= c[0] <= high],
+                       start_ns, goal_pose(result)[2])
+
+
 def write_figure(results, filename):
-    """Draw every run side by side into one PNG; return False without matplotlib."""
+    """
+    Draw every run into one PNG, a column each; return False without matplotlib.
+
+    In each column: the path, then over simulated time the heading and the linear and angular
+    speeds, commanded (cmd_vel as heard) and achieved (odometry).
+    """
     try:
         import matplotlib
     except ImportError:
@@ -206,17 +258,30 @@ def write_figure(results, filename):
     from matplotlib import pyplot
 
     from motion_challenges.plotting import draw_run
+    from motion_challenges.plotting import draw_series
 
-    figure, axes = pyplot.subplots(1, len(results), figsize=(4.2 * len(results), 4.6))
-    for ax, result in zip(axes, results):
+    figure, axes = pyplot.subplots(
+        4, len(results), figsize=(4.4 * len(results), 12.5), squeeze=False,
+        gridspec_kw={'height_ratios': (2.2, 1.0, 1.0, 1.0)})
+    for column, result in enumerate(results):
+        path, heading, linear, angular = axes[:, column]
+        for ax in (linear, angular):
+            ax.sharex(heading)
         if result.start is None or result.end is None:
-            ax.set_title(f'{result.motion.label}: no odometry', fontsize='small')
+            path.set_title(f'{result.motion.label}: no odometry', fontsize='small')
+            for ax in axes[1:, column]:
+                ax.set_axis_off()
             continue
         cells = row(result)
         start, end = result.start, result.end
-        draw_run(ax, result.trajectory, start=(start.x, start.y, start.yaw),
+        draw_run(path, result.trajectory, start=(start.x, start.y, start.yaw),
                  end=(end.x, end.y, end.yaw), goal=goal_pose(result),
-                 title=f'{cells[0]}\nerror {cells[3]}')
+                 title=f'{cells[0]}\nerror {cells[3]}', legend=column == 0)
+        series = run_series(result)
+        if series is None:
+            heading.set_title('no command heard', fontsize='small')
+            continue
+        draw_series(heading, linear, angular, series, legend=column == 0)
     figure.tight_layout()
     figure.savefig(filename, dpi=80)
     pyplot.close(figure)
