@@ -147,10 +147,12 @@ def draw_run(axes, trajectory, start=None, end=None, goal=None, title='', legend
     # Arrows do not count in matplotlib's limits: the view holds their tips, and a minimum.
     px += [x + size * math.cos(yaw) for (x, _, yaw), *_ in poses]
     py += [y + size * math.sin(yaw) for (_, y, yaw), *_ in poses]
-    for setter, low, high in ((axes.set_xlim, min(px), max(px)),
-                              (axes.set_ylim, min(py), max(py))):
+    corners = []
+    for low, high in ((min(px), max(px)), (min(py), max(py))):
         half = max(0.55 * (high - low), 0.5 * _MIN_VIEW)
-        setter(0.5 * (low + high) - half, 0.5 * (low + high) + half)
+        corners.append((0.5 * (low + high) - half, 0.5 * (low + high) + half))
+    axes.update_datalim(list(zip(*corners)))
+    axes.autoscale_view()
     axes.set_aspect('equal', adjustable='datalim')
     axes.set_xlabel('x [m]')
     axes.set_ylabel('y [m]')

@@ -221,8 +221,8 @@ def run_series(result):
 
     Time counts from the motion's start: the last odometry at rest before the robot moved, or
     the first moving command if heard before (commands are those heard once this process has
-    discovered the motion's publisher, which can be late: the commanded steps may begin late).  A little before the
-    start stays in view, and half a second after the robot came to rest.
+    discovered the motion's publisher, which can be late: the commanded steps may begin late).
+    A little before the start stays in view, and half a second after the robot came to rest.
     """
     from motion_challenges.plotting import time_series
 
