@@ -21,7 +21,7 @@ ROS_TEST_WHEELS := ros-ament-flake8==0.17.3 ros-ament-pep257==0.17.3 \
 	flake8==7.0.0 flake8-builtins==2.1.0 flake8-comprehensions==3.14.0 \
 	flake8-docstrings==1.7.0 flake8-import-order==0.19.2 flake8-quotes==3.3.2 pydocstyle==6.3.0
 PY_DEPS := numpy pytest pytest-xdist hypothesis colcon-common-extensions matplotlib import-linter \
-	mcap mcap-ros2-support
+	mcap mcap-ros2-support foxglove-sdk websockets
 
 .PHONY: venv test demo bench stress lint clean
 

@@ -46,6 +46,7 @@ ROS_PACKAGES = {'ament_index_python', 'geometry_msgs', 'nav_msgs', 'rcl_interfac
 # runs without when it is missing (sim_diffdrive/taps.py).  Not exec_depends.
 OPTIONAL = {
     'mcap': ['sim_diffdrive/recorder.py'],  # record_file
+    'foxglove': ['sim_diffdrive/foxglove_live.py'],  # foxglove_port
 }
 
 

@@ -1,0 +1,230 @@
+# Copyright 2026 motion_challenges contributors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The simulator's run, live in Foxglove: a WebSocket server (foxglove-sdk) fed by the taps.
+
+Every message the simulator hands to its taps goes out on its ROS topic as it is on DDS: CDR
+bytes with a ``ros2msg`` schema (odom, path, cmd_vel, /tf, /clock), so Foxglove decodes and
+shows them as it would a ROS bag.  Two Foxglove messages make the robot visible in the 3D
+panel: ``/foxglove/robot``, a SceneUpdate with a box and an arrow of about the robot's size
+locked to the base frame, and, only when the simulator does not publish /tf (publish_tf
+false), ``/foxglove/odom_transform``, the odometry as a FrameTransforms.
+
+The server listens on 127.0.0.1: Foxglove (desktop, or the web app in a browser) runs on the
+user's machine and connects to ws://localhost:PORT; the server has no authentication, so it
+is not offered to the network.  To watch a simulator on another machine, forward the port
+(``ssh -L 8765:localhost:8765 robot``).
+
+At 50 Hz the cost stays small: a message is serialized only when a client subscribes to its
+topic, the path (thousands of poses) goes out at most twice a wall second and the scene, which
+does not change, once a second and when the base frame is renamed.
+"""
+
+import importlib
+import re
+import time
+
+from nav_msgs.msg import Odometry
+from nav_msgs.msg import Path
+from rclpy.serialization import serialize_message
+
+DEFAULT_HOST = '127.0.0.1'
+SCENE_TOPIC = '/foxglove/robot'
+TRANSFORM_TOPIC = '/foxglove/odom_transform'
+# Wall seconds between two paths, and between two scene updates, sent to Foxglove.
+PATH_PERIOD_S = 0.5
+SCENE_PERIOD_S = 1.0
+# The robot as drawn in base_footprint: a box on the ground and an arrow along +x [m].
+BODY_SIZE = (0.30, 0.25, 0.12)
+ARROW_LENGTH = 0.40
+_NS = 1_000_000_000
+
+# IDL names (what get_fields_and_field_types() says) of the .msg primitive types.
+_PRIMITIVES = {
+    'boolean': 'bool', 'octet': 'byte', 'float': 'float32', 'double': 'float64',
+    'char': 'char', 'uint8': 'uint8', 'int8': 'int8', 'uint16': 'uint16', 'int16': 'int16',
+    'uint32': 'uint32', 'int32': 'int32', 'uint64': 'uint64', 'int64': 'int64',
+    'string': 'string', 'wstring': 'wstring',
+}
+_SEQUENCE = re.compile(r'sequence<(?P<item>[^,>]+)(?:, *(?P<bound>\d+))?>$')
+_ARRAY = re.compile(r'(?P<item>.+)\[(?P<size>\d+)\]$')
+_BOUNDED_STRING = re.compile(r'(?P<kind>w?string)<(?P<bound>\d+)>$')
+
+
+def ros_type_name(msg_class):
+    """Return a message class's ROS 2 type name, e.g. 'nav_msgs/msg/Odometry'."""
+    return f"{msg_class.__module__.partition('.')[0]}/msg/{msg_class.__name__}"
+
+
+def ros2msg_schema(msg_class):
+    """
+    Return the ``ros2msg`` schema text of a message class, its nested types included.
+
+    As ros2 bag writes it into MCAP files: the type's fields, then each type it uses once,
+    after a line of 80 '=' and 'MSG: package/Type'.  Built from the generated Python class
+    (its fields, not the .msg file), so it needs no share directory; constants and comments,
+    which the bytes do not carry, are left out.
+    """
+    nested = []
+    text = _definition(msg_class, nested)
+    seen = set()
+    while nested:
+        name = nested.pop(0)
+        if name in seen:
+            continue
+        seen.add(name)
+        package, _, type_ = name.partition('/')
+        cls = getattr(importlib.import_module(f'{package}.msg'), type_)
+        text += f"{'=' * 80}\nMSG: {name}\n{_definition(cls, nested)}"
+    return text
+
+
+def _definition(msg_class, nested):
+    lines = []
+    for field, idl in msg_class.get_fields_and_field_types().items():
+        lines.append(f'{_msg_type(idl, nested)} {field}\n')
+    return ''.join(lines)
+
+
+def _msg_type(idl, nested):
+    match = _SEQUENCE.match(idl)
+    if match:
+        bound = match['bound']
+        return _msg_type(match['item'], nested) + (f'[<={bound}]' if bound else '[]')
+    match = _ARRAY.match(idl)
+    if match:
+        return f"{_msg_type(match['item'], nested)}[{match['size']}]"
+    match = _BOUNDED_STRING.match(idl)
+    if match:
+        return f"{match['kind']}<={match['bound']}"
+    if idl in _PRIMITIVES:
+        return _PRIMITIVES[idl]
+    nested.append(idl)  # package/Type
+    return idl
+
+
+class FoxgloveLive:
+    """A tap (see taps.py) serving the run to Foxglove over WebSocket on one port."""
+
+    name = 'foxglove_port'
+    wants_path = True
+
+    def __init__(self, port, node, host=DEFAULT_HOST):
+        """
+        Start the server on host:port (port 0: any free one, see ``port``).
+
+        Raises ImportError without foxglove-sdk and OSError when the port cannot be had.
+        """
+        import foxglove
+        from foxglove import channels
+        from foxglove import messages
+        from foxglove.websocket import Capability
+        self._foxglove = foxglove
+        self._messages = messages
+        self._node = node
+        self._context = foxglove.Context()
+        try:
+            self._server = foxglove.start_server(
+                name=node.get_fully_qualified_name(), host=host, port=port,
+                capabilities=[Capability.Time], context=self._context)
+        except RuntimeError as error:  # FoxgloveError: Failed to bind port: Address in use
+            raise OSError(f'cannot serve Foxglove on {host}:{port}: {error}') from error
+        self.port = self._server.port
+        self.url = f"ws://{'localhost' if host == DEFAULT_HOST else host}:{self.port}"
+        self._channels = {}  # ROS topic -> Channel carrying CDR
+        self._scene = channels.SceneUpdateChannel(SCENE_TOPIC, context=self._context)
+        self._transforms = None
+        if not node.params.publish_tf:
+            self._transforms = channels.FrameTransformsChannel(
+                TRANSFORM_TOPIC, context=self._context)
+        self._scene_frame = None
+        self._scene_wall = 0.0
+        self._path_wall = 0.0
+        node.get_logger().info(f'Foxglove: {self.url} (Open connection in Foxglove)')
+
+    def write(self, topic, msg, stamp_ns):
+        """Send msg on topic (and the robot with odometry) to subscribed clients."""
+        if self._server is None:
+            return
+        channel = self._channels.get(topic)
+        if channel is None:
+            channel = self._channels[topic] = self._advertise(topic, type(msg))
+        if isinstance(msg, Odometry):  # the time, and what draws the robot
+            self._server.broadcast_time(stamp_ns)
+            self._write_robot(msg, stamp_ns)
+        if not channel.has_sinks():
+            return
+        if isinstance(msg, Path):  # the costliest message: throttled
+            now = time.monotonic()
+            if now - self._path_wall < PATH_PERIOD_S:
+                return
+            self._path_wall = now
+        channel.log(serialize_message(msg), log_time=stamp_ns)
+
+    def close(self):
+        """Stop the server (idempotent)."""
+        server, self._server = self._server, None
+        if server is not None:
+            server.stop()
+            self._node.get_logger().info(f'Foxglove: {self.url} closed')
+
+    def _advertise(self, topic, msg_class):
+        name = ros_type_name(msg_class)
+        schema = self._foxglove.Schema(
+            name=name, encoding='ros2msg', data=ros2msg_schema(msg_class).encode())
+        return self._foxglove.Channel(
+            topic, message_encoding='cdr', schema=schema, context=self._context)
+
+    def _write_robot(self, odom, stamp_ns):
+        m = self._messages
+        child_frame = odom.child_frame_id
+        if self._transforms is not None and self._transforms.has_sinks():
+            p = odom.pose.pose.position
+            q = odom.pose.pose.orientation
+            self._transforms.log(m.FrameTransforms(transforms=[m.FrameTransform(
+                timestamp=_timestamp(m, stamp_ns), parent_frame_id=odom.header.frame_id,
+                child_frame_id=child_frame, translation=m.Vector3(x=p.x, y=p.y, z=p.z),
+                rotation=m.Quaternion(x=q.x, y=q.y, z=q.z, w=q.w))]), log_time=stamp_ns)
+        if not self._scene.has_sinks():
+            self._scene_frame = None  # a new subscriber gets it at once
+            return
+        now = time.monotonic()
+        if child_frame == self._scene_frame and now - self._scene_wall < SCENE_PERIOD_S:
+            return
+        self._scene_frame, self._scene_wall = child_frame, now
+        self._scene.log(robot_scene(m, child_frame, stamp_ns), log_time=stamp_ns)
+
+
+def _timestamp(messages, stamp_ns):
+    return messages.Timestamp(stamp_ns // _NS, stamp_ns % _NS)
+
+
+def robot_scene(messages, frame, stamp_ns):
+    """Return a SceneUpdate drawing the robot in frame: a box and an arrow along +x."""
+    m = messages
+    length, width, height = BODY_SIZE
+    body = m.CubePrimitive(
+        pose=m.Pose(position=m.Vector3(z=height / 2), orientation=m.Quaternion(w=1.0)),
+        size=m.Vector3(x=length, y=width, z=height),
+        color=m.Color(r=0.2, g=0.45, b=0.9, a=0.8))
+    heading = m.ArrowPrimitive(
+        pose=m.Pose(position=m.Vector3(z=height + 0.01), orientation=m.Quaternion(w=1.0)),
+        shaft_length=ARROW_LENGTH * 0.7, shaft_diameter=0.04,
+        head_length=ARROW_LENGTH * 0.3, head_diameter=0.09,
+        color=m.Color(r=1.0, g=0.55, b=0.0, a=1.0))
+    entity = m.SceneEntity(
+        timestamp=_timestamp(m, stamp_ns), frame_id=frame, id='robot', frame_locked=True,
+        cubes=[body], arrows=[heading])
+    return m.SceneUpdate(entities=[entity])
