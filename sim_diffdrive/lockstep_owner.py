@@ -79,12 +79,16 @@ class LockstepOwner:
         if sim.clock_timer is None or sim.clock_timer.is_canceled():
             return  # stepped from outside (the in-process harness)
         ledger = self.ledger
-        waited = time.monotonic() - sim.clock_wall
+        wall = sim.clock_wall
+        waited = time.monotonic() - wall
         if len(ledger.members) <= 1:
             self._publish_roster()
             # Freewheel until the first answer.
-            for _ in range(min(int(waited / sim.step_budget_s), _MAX_CATCH_UP)):
+            steps = min(int(waited / sim.step_budget_s), _MAX_CATCH_UP)
+            for _ in range(steps):
                 sim.step()
+            if steps:
+                self._keep_schedule(wall, steps)
             return
         if self._waiting is None:
             # Worked out again only after news; the clock timer in between only paces.
@@ -97,6 +101,21 @@ class LockstepOwner:
             self._give_up(waiting)
         if waited >= sim.step_budget_s:
             sim.step()
+            self._keep_schedule(wall, 1)
+
+    def _keep_schedule(self, wall, steps):
+        """
+        Date the steps just taken on the wall schedule, not at the moment they ended.
+
+        The clock timer fires once per step budget; were the last step dated when it ended, the
+        next tick would find a little less than a budget waited and skip, halving the rate.
+        Far behind (the clock was held, or the machine is slower than real_time_factor), the
+        schedule starts again from now rather than catching up in a burst.
+        """
+        budget = self.sim.step_budget_s
+        scheduled = wall + steps * budget
+        now = time.monotonic()
+        self.sim.clock_wall = scheduled if now - scheduled < budget else now
 
     def _on_answer(self, msg):
         try:

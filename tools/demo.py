@@ -186,6 +186,30 @@ def run_motion(motion, graph, rtf, log_dir, record_dir=None):
             if child is not None:
                 harness.stop(child)
         graph.remove(probe)
+        if record_dir and sim is not None:
+            # The simulator heard every command, on its own clock, from the first one on; this
+            # process hears cmd_vel only once it has discovered the motion's process, which can
+            # be late in a short run.  The recording (closed when the simulator stopped) wins.
+            commands[:] = recorded_commands(recording_path(motion, record_dir)) or commands
+
+
+def recorded_commands(path):
+    """Return (sim ns, linear, angular) of every command a recording holds, [] without one."""
+    try:
+        from geometry_msgs.msg import TwistStamped
+        from mcap.reader import make_reader
+        from rclpy.serialization import deserialize_message
+        with open(path, 'rb') as stream:
+            heard = []
+            for schema, _, message in make_reader(stream).iter_messages(topics=['/cmd_vel']):
+                stamped = schema.name == 'geometry_msgs/msg/TwistStamped'
+                msg = deserialize_message(message.data, TwistStamped if stamped else Twist)
+                twist = msg.twist if stamped else msg
+                heard.append((message.log_time, twist.linear.x, twist.angular.z))
+            return heard
+    except (ImportError, OSError, ValueError) as error:
+        print(f'  could not read the commands from {path}: {error}')
+        return []
 
 
 def goal_pose(result):
