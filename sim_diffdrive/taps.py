@@ -32,7 +32,7 @@ TAP_PARAMETERS = (
          'messages, ros2msg schemas; ros2 bag and Foxglove open it), closed with its index on '
          'Ctrl-C and SIGTERM; empty = off. Needs the mcap package.'),
     Spec('foxglove_port', 0,
-         'Serve the run live to Foxglove (WebSocket, foxglove.websocket.v1) on this port, e.g. '
+         'Serve the run live to Foxglove (its WebSocket protocol) on this port, e.g. '
          "8765, Foxglove's usual one; 0 = off. Needs foxglove-sdk.",
          low=0, high=65535),
 )
