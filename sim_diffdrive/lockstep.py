@@ -82,12 +82,14 @@ class Lockstep:
         self.spin_until(forgotten, 10.0, poll=0.005)
 
     def close(self):
-        """Destroy every node and shut the executor down (the context is the caller's)."""
+        """Shut the executor down, then destroy every node (the context is the caller's)."""
+        # The executor first: between two spin_once calls it keeps the last wait set and its
+        # entities, and destroying a node under it crashed rclpy now and then (a segfault in
+        # destroy_node under load).
+        self.executor.shutdown()
         for node in reversed(self.nodes):
-            self.executor.remove_node(node)
             node.destroy_node()
         self.nodes = []
-        self.executor.shutdown()
 
     # -- spinning -----------------------------------------------------------------------------
 
