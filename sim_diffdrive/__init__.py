@@ -17,6 +17,6 @@ A light kinematic unicycle simulator (Twist in, Odometry out, optional /clock), 
 
 Pure maths (kinematics, angles, handshake), the node plumbing every node here shares
 (parameters, runtime, participant), the simulator node (sim_node, lockstep_owner), and the
-harness to test robot code against it (harness, lockstep, pytest_plugin).  It imports nothing
-from motion_challenges (see README "Architecture").
+harness to test robot code against it (harness, lockstep, pytest_plugin).  Nothing here
+depends on the motions package; they stand on this one (see README "Architecture").
 """
