@@ -16,11 +16,12 @@
 The simulator's run, live in Foxglove: a WebSocket server (foxglove-sdk) fed by the taps.
 
 Every message the simulator hands to its taps goes out on its ROS topic as it is on DDS: CDR
-bytes with a ``ros2msg`` schema (odom, path, cmd_vel, /tf, /clock), so Foxglove decodes and
-shows them as it would a ROS bag.  Two Foxglove messages make the robot visible in the 3D
-panel: ``/foxglove/robot``, a SceneUpdate with a box and an arrow of about the robot's size
-locked to the base frame, and, only when the simulator does not publish /tf (publish_tf
-false), ``/foxglove/odom_transform``, the odometry as a FrameTransforms.
+bytes with the ``ros2msg`` schema rosbag2 would write (msg_definitions.py; odom, path, cmd_vel,
+/tf, /clock), so Foxglove decodes and shows them as it would a ROS bag.  Two Foxglove
+messages make the robot visible in the 3D panel: ``/foxglove/robot``, a SceneUpdate with a
+box and an arrow of about the robot's size locked to the base frame, and, only when the
+simulator does not publish /tf (publish_tf false), ``/foxglove/odom_transform``, the
+odometry as a FrameTransforms.
 
 The server listens on 127.0.0.1: Foxglove (desktop, or the web app in a browser) runs on the
 user's machine and connects to ws://localhost:PORT; the server has no authentication, so it
@@ -32,13 +33,13 @@ topic, the path (thousands of poses) goes out at most twice a wall second and th
 does not change, once a second and when the base frame is renamed.
 """
 
-import importlib
-import re
 import time
 
 from nav_msgs.msg import Odometry
 from nav_msgs.msg import Path
 from rclpy.serialization import serialize_message
+from sim_diffdrive.msg_definitions import message_definition
+from sim_diffdrive.msg_definitions import type_name
 
 DEFAULT_HOST = '127.0.0.1'
 SCENE_TOPIC = '/foxglove/robot'
@@ -50,69 +51,6 @@ SCENE_PERIOD_S = 1.0
 BODY_SIZE = (0.30, 0.25, 0.12)
 ARROW_LENGTH = 0.40
 _NS = 1_000_000_000
-
-# IDL names (what get_fields_and_field_types() says) of the .msg primitive types.
-_PRIMITIVES = {
-    'boolean': 'bool', 'octet': 'byte', 'float': 'float32', 'double': 'float64',
-    'char': 'char', 'uint8': 'uint8', 'int8': 'int8', 'uint16': 'uint16', 'int16': 'int16',
-    'uint32': 'uint32', 'int32': 'int32', 'uint64': 'uint64', 'int64': 'int64',
-    'string': 'string', 'wstring': 'wstring',
-}
-_SEQUENCE = re.compile(r'sequence<(?P<item>[^,>]+)(?:, *(?P<bound>\d+))?>$')
-_ARRAY = re.compile(r'(?P<item>.+)\[(?P<size>\d+)\]$')
-_BOUNDED_STRING = re.compile(r'(?P<kind>w?string)<(?P<bound>\d+)>$')
-
-
-def ros_type_name(msg_class):
-    """Return a message class's ROS 2 type name, e.g. 'nav_msgs/msg/Odometry'."""
-    return f"{msg_class.__module__.partition('.')[0]}/msg/{msg_class.__name__}"
-
-
-def ros2msg_schema(msg_class):
-    """
-    Return the ``ros2msg`` schema text of a message class, its nested types included.
-
-    As ros2 bag writes it into MCAP files: the type's fields, then each type it uses once,
-    after a line of 80 '=' and 'MSG: package/Type'.  Built from the generated Python class
-    (its fields, not the .msg file), so it needs no share directory; constants and comments,
-    which the bytes do not carry, are left out.
-    """
-    nested = []
-    text = _definition(msg_class, nested)
-    seen = set()
-    while nested:
-        name = nested.pop(0)
-        if name in seen:
-            continue
-        seen.add(name)
-        package, _, type_ = name.partition('/')
-        cls = getattr(importlib.import_module(f'{package}.msg'), type_)
-        text += f"{'=' * 80}\nMSG: {name}\n{_definition(cls, nested)}"
-    return text
-
-
-def _definition(msg_class, nested):
-    lines = []
-    for field, idl in msg_class.get_fields_and_field_types().items():
-        lines.append(f'{_msg_type(idl, nested)} {field}\n')
-    return ''.join(lines)
-
-
-def _msg_type(idl, nested):
-    match = _SEQUENCE.match(idl)
-    if match:
-        bound = match['bound']
-        return _msg_type(match['item'], nested) + (f'[<={bound}]' if bound else '[]')
-    match = _ARRAY.match(idl)
-    if match:
-        return f"{_msg_type(match['item'], nested)}[{match['size']}]"
-    match = _BOUNDED_STRING.match(idl)
-    if match:
-        return f"{match['kind']}<={match['bound']}"
-    if idl in _PRIMITIVES:
-        return _PRIMITIVES[idl]
-    nested.append(idl)  # package/Type
-    return idl
 
 
 class FoxgloveLive:
@@ -181,9 +119,9 @@ class FoxgloveLive:
             self._node.get_logger().info(f'Foxglove: {self.url} closed')
 
     def _advertise(self, topic, msg_class):
-        name = ros_type_name(msg_class)
+        name = type_name(msg_class)
         schema = self._foxglove.Schema(
-            name=name, encoding='ros2msg', data=ros2msg_schema(msg_class).encode())
+            name=name, encoding='ros2msg', data=message_definition(name).encode())
         return self._foxglove.Channel(
             topic, message_encoding='cdr', schema=schema, context=self._context)
 

@@ -29,73 +29,18 @@ but without the index that ``ros2 bag`` needs.
 
 import contextlib
 import os
-import re
 import signal
 import threading
 
-from ament_index_python.packages import get_package_share_directory
-from ament_index_python.packages import PackageNotFoundError
 from mcap.well_known import MessageEncoding
 from mcap.well_known import SchemaEncoding
 from mcap.writer import Writer
 from rclpy.serialization import serialize_message
+from sim_diffdrive.msg_definitions import message_definition
+from sim_diffdrive.msg_definitions import type_name
 
-SEPARATOR = '=' * 80
-# A field's type at the start of a line of a .msg ('geometry_msgs/Pose[] poses'): the pattern
-# rosbag2's LocalMessageDefinitionSource uses, so the dependencies come out in the same order.
-_FIELD_TYPE = re.compile(r'(?:^|\n)\s*([a-zA-Z0-9_/]+)(?:\[[^\]]*\])?\s+')
-_PRIMITIVES = frozenset((
-    'bool', 'byte', 'char', 'float32', 'float64', 'int8', 'uint8', 'int16', 'uint16', 'int32',
-    'uint32', 'int64', 'uint64', 'string'))
 _LIBRARY = 'motion_challenges unicycle_sim'
 _SIGNALS = {signal.SIGINT, signal.SIGTERM}
-
-
-def type_name(message_class):
-    """Return a message class's ROS 2 type name, e.g. 'nav_msgs/msg/Odometry'."""
-    package = message_class.__module__.partition('.')[0]
-    return f'{package}/msg/{message_class.__name__}'
-
-
-def message_definition(name):
-    """
-    Return the full ros2msg definition of type name ('pkg/msg/Type' or 'pkg/Type').
-
-    Raises LookupError when a .msg file is not in the ament index.
-    """
-    seen = set()
-
-    def with_dependencies(name):
-        text = _msg_text(name)
-        package = name.partition('/')[0]
-        for dependency in sorted(_dependencies(text, package)):
-            if dependency not in seen:
-                seen.add(dependency)
-                text += f'\n{SEPARATOR}\nMSG: {dependency}\n' + with_dependencies(dependency)
-        return text
-
-    return with_dependencies(name)
-
-
-def _dependencies(text, package):
-    found = set()
-    for match in _FIELD_TYPE.finditer(text):
-        field_type = match.group(1)
-        if field_type in _PRIMITIVES:
-            continue
-        found.add(field_type if '/' in field_type else f'{package}/{field_type}')
-    return found
-
-
-def _msg_text(name):
-    parts = name.split('/')
-    package, kind, type_ = (parts[0], 'msg', parts[1]) if len(parts) == 2 else parts
-    try:
-        path = os.path.join(get_package_share_directory(package), kind, f'{type_}.msg')
-        with open(path, encoding='utf-8', newline='') as msg_file:
-            return msg_file.read()
-    except (PackageNotFoundError, OSError) as error:
-        raise LookupError(f'no .msg definition of {name} in the ament index ({error})')
 
 
 class McapRecorder:
@@ -135,10 +80,6 @@ class McapRecorder:
             self._abandon()
             raise
         self._logger.info(f'Recording to {os.path.abspath(self.path)} (MCAP)')
-
-    @property
-    def message_count(self):
-        return self._count
 
     def write(self, topic, msg, stamp_ns):
         """Append msg on topic at simulated time stamp_ns (registering its channel once)."""

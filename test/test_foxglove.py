@@ -30,7 +30,7 @@ from nav_msgs.msg import Odometry
 import pytest
 from rclpy.serialization import deserialize_message
 from sim_diffdrive import harness
-from sim_diffdrive.foxglove_live import ros2msg_schema
+from sim_diffdrive.msg_definitions import message_definition
 
 pytest.importorskip('foxglove')
 sync_client = pytest.importorskip('websockets.sync.client')
@@ -159,7 +159,7 @@ def test_advertises_the_topics_as_ros2_cdr_and_the_robot(graph, client_for):
     odom = client.channels['/odom']
     assert (odom['encoding'], odom['schemaName'], odom['schemaEncoding']) == (
         'cdr', 'nav_msgs/msg/Odometry', 'ros2msg')
-    assert odom['schema'] == ros2msg_schema(Odometry)
+    assert odom['schema'] == message_definition('nav_msgs/msg/Odometry')
     assert client.channels['/tf']['schemaName'] == 'tf2_msgs/msg/TFMessage'
     assert client.channels['/foxglove/robot']['schemaName'] == 'foxglove.SceneUpdate'
     # The simulator publishes /tf: no second transform from Foxglove's side.
