@@ -69,6 +69,14 @@ def pose_of(odom):
         p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w)
 
 
+def twist(linear, angular):
+    """Return a Twist commanding linear.x [m/s] and angular.z [rad/s]."""
+    msg = Twist()
+    msg.linear.x = float(linear)
+    msg.angular.z = float(angular)
+    return msg
+
+
 def twist_of(odom):
     """Return (linear.x, angular.z) of an Odometry message's twist."""
     return odom.twist.twist.linear.x, odom.twist.twist.angular.z
@@ -132,10 +140,7 @@ class Probe(Node):
         return self.odoms[-1] if self.odoms else None
 
     def send(self, linear=0.0, angular=0.0):
-        msg = Twist()
-        msg.linear.x = float(linear)
-        msg.angular.z = float(angular)
-        self.cmd_pub.publish(msg)
+        self.cmd_pub.publish(twist(linear, angular))
 
     def play(self, script, period=0.1):
         """Play (linear, angular, ticks) steps on a sim-time timer, then send one zero Twist."""

@@ -37,6 +37,7 @@ from sim_diffdrive.harness import is_moving as moving
 from sim_diffdrive.harness import pose_of
 from sim_diffdrive.harness import ros_params
 from sim_diffdrive.harness import stamp_s
+from sim_diffdrive.harness import twist as command
 from sim_diffdrive.harness import twist_of as twist
 from sim_diffdrive.sim_node import UnicycleSim
 
@@ -142,14 +143,14 @@ def test_simulator_refuses_garbage_commands_and_stale_stamps(graph, procs):
         plain.describe() + stamped.describe())
 
     def send_plain(linear, angular):
-        plain_pub.publish(make_twist(linear, angular))
+        plain_pub.publish(command(linear, angular))
 
     def send_stamped(linear, angular, offset_s):
         msg = TwistStamped()
         if offset_s is not None:
             now_ns = time.time_ns() + round(offset_s * NS)
             msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(now_ns, NS)
-        msg.twist = make_twist(linear, angular)
+        msg.twist = command(linear, angular)
         stamped_pub.publish(msg)
 
     def applied(watcher, expected):
@@ -177,13 +178,6 @@ def test_simulator_refuses_garbage_commands_and_stale_stamps(graph, procs):
     send_stamped(0.3, -0.2, None)
     assert applied(plain_watch, (0.3, -0.2)) and applied(stamped_watch, (0.3, -0.2))
     assert 'Traceback' not in plain.output() + stamped.output()
-
-
-def make_twist(linear, angular):
-    msg = Twist()
-    msg.linear.x = float(linear)
-    msg.angular.z = float(angular)
-    return msg
 
 
 # -- floods and two controllers ----------------------------------------------------------------
@@ -222,10 +216,9 @@ def test_two_controllers_at_once_are_warned_about_once(graph, procs):
                                  parameter_overrides=[Parameter('use_sim_time', value=True)]))
     on_wall_time = graph.add(Node('controller_wall_time', namespace=namespace,
                                   context=graph.context))
-    for node, command in ((on_sim_time, (0.2, 0.0)), (on_wall_time, (0.0, 0.5))):
+    for node, speeds in ((on_sim_time, (0.2, 0.0)), (on_wall_time, (0.0, 0.5))):
         pub = node.create_publisher(Twist, 'cmd_vel', 10)
-        node.create_timer(0.04, lambda pub=pub, command=command: pub.publish(
-            make_twist(*command)))
+        node.create_timer(0.04, lambda pub=pub, speeds=speeds: pub.publish(command(*speeds)))
     assert graph.spin_until(lambda: moving(watcher.odom), 20.0), sim.describe()
     start = stamp_s(watcher.odom)
     # Simulated time keeps running (the publisher count is checked once a simulated second),

@@ -31,6 +31,7 @@ from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sim_diffdrive.harness import SimGraph
+from sim_diffdrive.harness import twist
 from sim_diffdrive.sim_node import UnicycleSim
 
 
@@ -124,10 +125,7 @@ class ScriptNode(Node):
         return self.get_clock().now().nanoseconds
 
     def publish(self, linear, angular):
-        msg = Twist()
-        msg.linear.x = float(linear)
-        msg.angular.z = float(angular)
-        self.cmd_pub.publish(msg)
+        self.cmd_pub.publish(twist(linear, angular))
 
     def play(self, script):
         """Start script; its first tick comes one period from now."""
