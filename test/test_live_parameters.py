@@ -34,7 +34,10 @@ from rclpy.node import Node
 from rclpy.parameter import get_parameter_value
 from rclpy.parameter import Parameter
 from rclpy.parameter import parameter_value_to_python
+from sim_diffdrive.harness import is_moving
 from sim_diffdrive.harness import pose_of
+from sim_diffdrive.harness import ros_params
+from sim_diffdrive.harness import stamp_s
 from sim_diffdrive.parameters import live_parameters
 from sim_diffdrive.parameters import ParameterError
 from sim_diffdrive.sim_node import PARAMETERS
@@ -299,3 +302,28 @@ def test_every_parameter_is_live_or_read_only(ros_context, node_class):
     finally:
         node.destroy_node()
         plain.destroy_node()
+
+
+# -- as a user does it: a simulator process, set from another process ------------------------
+
+def test_a_simulator_process_applies_a_live_set_and_refuses_a_read_only_one(graph, procs):
+    sim = procs('unicycle_sim', 'unicycle_sim', *ros_params('rate_hz:=50.0'))
+    graph.wait_for_odometry(process=sim)
+    probe = graph.probe('setter', use_sim_time=False)
+    params = Parameters(graph, probe, '/unicycle_sim')
+    assert not params.set_param('rate_hz', '10.0').successful
+    result = params.set_param('cmd_vel_timeout', '1.0')
+    assert result.successful, result.reason
+    assert graph.spin_until(lambda: probe.cmd_pub.get_subscription_count() > 0)
+    probe.send(0.5, 0.0)  # once: only the new timeout stops it
+    odoms = graph.odometry
+    assert graph.spin_until(lambda: is_moving(odoms.odom), 10.0), sim.describe()
+    assert graph.spin_until(lambda: not is_moving(odoms.odom), 10.0), sim.describe()
+    moving = [stamp_s(o) for o in odoms.odoms if is_moving(o)]
+    # The robot moves for the timeout, 1.0 s (not the 0.5 s it started with): odometry at
+    # 50 Hz shows it moving from at most one period after the command to at most one period
+    # before the stop.
+    assert 1.0 - 2 * 0.02 - 1e-6 <= moving[-1] - moving[0] <= 1.0 + 1e-6, moving
+    output = sim.output()
+    assert 'cmd_vel_timeout is now 1.0 s' in output
+    assert 'No cmd_vel for 1 s: stopping the robot' in output
