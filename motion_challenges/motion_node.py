@@ -119,11 +119,8 @@ class MotionNode(Node):
             Odometry, 'odom', self._on_odom, 50).topic_name
         self.odom = None
         self._odom_wall = None
-        self.trajectory = []  # (x, y, yaw) of each odometry while running or settling
-        # For plot_file, over the same span: (stamp_ns, yaw, linear, angular) of each odometry
-        # and (time_ns, linear, angular) of each command sent.
-        self.odometry_samples = []
-        self.sent_commands = []
+        self.run_odoms = []  # the OdomPose of each odometry while running or settling
+        self.sent_commands = []  # for plot_file: (time_ns, linear, angular) of each command
         self.start_odom = None
         self.turned = YawAccumulator()
         self.commands = CommandLog()
@@ -154,6 +151,16 @@ class MotionNode(Node):
         self.sim_time = self.get_parameter('use_sim_time').value
         self._early_odoms = []
         self.lockstep = take_part(self) if self.sim_time else None
+
+    @property
+    def trajectory(self):
+        """Return (x, y, yaw) of each odometry while running or settling."""
+        return [(o.x, o.y, o.yaw) for o in self.run_odoms]
+
+    @property
+    def odometry_samples(self):
+        """Return (stamp_ns, yaw, linear, angular) of the same odometry, for plot_file."""
+        return [(o.stamp_ns, o.yaw, *o.twist) for o in self.run_odoms]
 
     # -- lifecycle ---------------------------------------------------------------------------
 
@@ -243,8 +250,7 @@ class MotionNode(Node):
         # Nothing before the latest odometry is asked for again (see predicted_progress).
         self.commands.forget_before(odom.stamp_ns)
         if self.state in (MotionState.RUNNING, MotionState.SETTLING):
-            self.trajectory.append((odom.x, odom.y, odom.yaw))
-            self.odometry_samples.append((odom.stamp_ns, odom.yaw, *odom.twist))
+            self.run_odoms.append(odom)
 
     def _on_time_jump(self, jump):
         self._early_odoms.clear()
