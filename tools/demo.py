@@ -392,7 +392,7 @@ def main():
     print(f'\nsim s / wall s: from the first to the last movement seen on odometry. '
           f'Total wall time {time.monotonic() - wall_start:.1f} s.')
     if write_figure(results, options.figure):
-        print(f'Trajectories: {os.path.abspath(options.figure)}')
+        print(f'Figure (path, heading, speeds): {os.path.abspath(options.figure)}')
     else:
         print('No figure: matplotlib is not installed (pip install matplotlib).')
     if record_dir is not None:
