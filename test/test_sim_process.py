@@ -15,9 +15,8 @@
 """
 The real ``unicycle_sim`` executable, driven over DDS by a probe in this process.
 
-Across processes the simulator steps time on a wall timer, so a command takes effect on the
-step it was meant for only while the graph keeps up: turns are checked within 0.05 rad here,
-exactly in test_sim_graph.py.
+The probe takes part in the simulator's lockstep, so each command takes effect on the step it
+was meant for however busy the machine is, and the turn ends exact.
 """
 
 import signal
@@ -26,6 +25,7 @@ import subprocess
 import pytest
 from sim_diffdrive.harness import angle_error
 from sim_diffdrive.harness import pose_of
+from sim_diffdrive.participant import take_part
 
 NS = 1_000_000_000
 SIM_ARGS = ('--ros-args', '-p', 'publish_clock:=true', '-p', 'real_time_factor:=5.0')
@@ -58,8 +58,13 @@ def wait_for_odometry(graph, probe, sim):
 def test_turns_on_command_and_exits_cleanly_on_sigint(graph, start_sim):
     sim = start_sim(*SIM_ARGS)
     probe = graph.probe()
+    lockstep = take_part(probe)
     wait_for_odometry(graph, probe, sim)
     assert pose_of(probe.odom) == (0.0, 0.0, 0.0)
+    # Play only once the simulator counts the probe: before, it freewheels past the probe.
+    assert graph.spin_until(
+        lambda: lockstep.joined and lockstep.counted_on(probe.cmd_pub.topic_name),
+        timeout=20.0), sim.output()
 
     # 1 rad/s, re-sent on every 0.1 s sim tick (well inside the 0.5 s cmd_vel timeout), for
     # 1.5 s, then a zero Twist.
@@ -70,7 +75,7 @@ def test_turns_on_command_and_exits_cleanly_on_sigint(graph, start_sim):
     odom = probe.odom
     x, y, yaw = pose_of(odom)
     assert (x, y) == (0.0, 0.0)
-    assert angle_error(yaw, 1.5) < 0.05
+    assert angle_error(yaw, 1.5) < 1e-12
     assert (odom.twist.twist.linear.x, odom.twist.twist.angular.z) == (0.0, 0.0)
 
     assert stop_with(sim, signal.SIGINT) == 0
