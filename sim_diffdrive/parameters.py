@@ -54,8 +54,9 @@ class Spec:
     A default of None declares the parameter without a value (it is then None unless given at
     start); ``kind`` names its type.  ``low``/``high`` bound numbers (and every element of a
     number array); ``low_open`` excludes ``low`` itself (a speed must be > 0).  ``choices``
-    restricts strings.  ``length`` fixes the size of an array.  ``live`` lets it change while
-    the node runs; otherwise it is read-only after start.
+    restricts strings.  ``length`` fixes the size of an array; ``items`` is the type of its
+    elements (float, or str for a string array).  ``live`` lets it change while the node runs;
+    otherwise it is read-only after start.
     """
 
     name: str
@@ -68,6 +69,7 @@ class Spec:
     length: int = None
     kind: type = None
     live: bool = False
+    items: type = float
 
     @property
     def type_(self):
@@ -83,7 +85,7 @@ class Spec:
             dynamic_typing=True, additional_constraints=self.constraints(),
             read_only=not self.live)
         if self.low is not None and self.high is not None:
-            if self.type_ in (float, list):
+            if self.type_ is float or (self.type_ is list and self.items is float):
                 descriptor.floating_point_range = [FloatingPointRange(
                     from_value=float(self.low), to_value=float(self.high))]
             elif self.type_ is int:
@@ -116,10 +118,17 @@ class Spec:
                 raise self._error(value, 'must be one of ' + ', '.join(self.choices))
             return value
         if self.type_ is list:
+            if value is None and self.default == []:
+                return []  # -p name:=[] declares the parameter without a type or value
+            what = 'strings' if self.items is str else 'numbers'
             if not isinstance(value, Sequence) or isinstance(value, str):
-                raise self._error(value, 'must be a list of numbers')
+                raise self._error(value, f'must be a list of {what}')
             if self.length is not None and len(value) != self.length:
                 raise self._error(value, f'must have exactly {self.length} values')
+            if self.items is str:
+                if not all(isinstance(v, str) for v in value):
+                    raise self._error(value, 'must be a list of strings')
+                return list(value)
             return [self._number(v, float) for v in value]
         return self._number(value, self.type_)
 
