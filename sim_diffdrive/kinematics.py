@@ -25,12 +25,12 @@ import math
 from sim_diffdrive.angles import normalize_angle
 
 # Below this |x| the series for sin(x)/x is exact to double precision and avoids 0/0.
-_SMALL_ANGLE = 1e-4
+SMALL_ANGLE = 1e-4
 
 
 def _sinc(x):
     """Return sin(x)/x, continuous through x = 0."""
-    if abs(x) < _SMALL_ANGLE:
+    if abs(x) < SMALL_ANGLE:
         return 1.0 - x * x / 6.0
     return math.sin(x) / x
 

@@ -42,29 +42,31 @@ def resolve_frame(namespace, frame, default):
 
 class OdomTransform:
     """
-    Publish header.frame_id -> child_frame_id of each odometry message on ``/tf``.
+    Publish header.frame_id -> child_frame_id of each robot's odometry on ``/tf``.
 
-    One TransformStamped is reused, as the simulator reuses its Odometry; each
-    ``publish(odom)`` copies the frames (they may change at runtime), the stamp and the pose.
+    One TFMessage carries every robot's transform (as robot_state_publisher sends a robot's
+    joints together), and its TransformStamped objects are reused, as the simulator reuses its
+    Odometry messages; each ``publish(odoms)`` copies the frames (they may change at runtime),
+    the stamps and the poses.
     """
 
-    def __init__(self, node):
+    def __init__(self, node, count=1):
         self.publisher = node.create_publisher(TFMessage, TF_TOPIC, TF_QOS)
-        self.transform = TransformStamped()
-        self._msg = TFMessage(transforms=[self.transform])
+        self.transforms = [TransformStamped() for _ in range(count)]
+        self._msg = TFMessage(transforms=self.transforms)
 
-    def publish(self, odom):
-        """Publish odom's pose as the transform from its frame to its child frame, its stamp."""
-        t = self.transform
-        t.header.frame_id = odom.header.frame_id
-        t.child_frame_id = odom.child_frame_id
-        t.header.stamp = odom.header.stamp
-        pose = odom.pose.pose
-        translation = t.transform.translation
-        translation.x, translation.y, translation.z = (
-            pose.position.x, pose.position.y, pose.position.z)
-        rotation = t.transform.rotation
-        q = pose.orientation
-        rotation.x, rotation.y, rotation.z, rotation.w = q.x, q.y, q.z, q.w
+    def publish(self, odoms):
+        """Publish each odometry's pose as the transform from its frame to its child frame."""
+        for t, odom in zip(self.transforms, odoms):
+            t.header.frame_id = odom.header.frame_id
+            t.child_frame_id = odom.child_frame_id
+            t.header.stamp = odom.header.stamp
+            pose = odom.pose.pose
+            translation = t.transform.translation
+            translation.x, translation.y, translation.z = (
+                pose.position.x, pose.position.y, pose.position.z)
+            rotation = t.transform.rotation
+            q = pose.orientation
+            rotation.x, rotation.y, rotation.z, rotation.w = q.x, q.y, q.z, q.w
         self.publisher.publish(self._msg)
         return self._msg

@@ -22,15 +22,11 @@ step, ``real_time_factor`` times faster than the wall clock, and publishes it on
 for nodes that run with ``use_sim_time``.
 """
 
-import bisect
 from collections import deque
+import re
 import time
 
-from geometry_msgs.msg import PoseStamped
-from geometry_msgs.msg import Twist
-from geometry_msgs.msg import TwistStamped
-from nav_msgs.msg import Odometry
-from nav_msgs.msg import Path
+import numpy as np
 from rclpy.clock import Clock
 from rclpy.clock import ClockType
 from rclpy.node import Node
@@ -38,23 +34,23 @@ from rclpy.qos import QoSProfile
 from rclpy.qos import ReliabilityPolicy
 from rclpy.time import Time
 from rosgraph_msgs.msg import Clock as ClockMsg
-from sim_diffdrive.angles import quaternion_from_yaw
-from sim_diffdrive.kinematics import UnicycleModel
+from sim_diffdrive.fleet import Fleet
 from sim_diffdrive.lockstep_owner import LockstepOwner
 from sim_diffdrive.odom_tf import OdomTransform
-from sim_diffdrive.odom_tf import resolve_frame
 from sim_diffdrive.parameters import declare
 from sim_diffdrive.parameters import ParameterError
 from sim_diffdrive.parameters import Spec
 from sim_diffdrive.participant import take_part
+from sim_diffdrive.robot import covariance
+from sim_diffdrive.robot import NO_DEADLINE
+from sim_diffdrive.robot import NOT_YET
+from sim_diffdrive.robot import Robot
 from sim_diffdrive.runtime import run
 from sim_diffdrive.taps import open_taps
 from sim_diffdrive.taps import TAP_PARAMETERS
 from std_srvs.srv import Empty
 
 _NS = 1_000_000_000
-# No ground robot commands more than this [m/s or rad/s]; larger values are refused as garbage.
-_COMMAND_LIMIT = 1e4
 # Clock pacing: wait this many times the graph's recent reaction time between steps; the
 # remembered reaction time shrinks by this factor per step, so a spike is forgotten in a
 # second of simulated time and an idle graph runs at the full real_time_factor.
@@ -64,6 +60,8 @@ _POSITION_LIMIT = 1e6
 # In lockstep the clock timer only paces and watches for laggards (answers drive the steps),
 # so it need not fire more often than this [s]; without members it catches up in bursts.
 _LOCKSTEP_TICK_S = 0.0005
+# A robot name: relative ROS name tokens (robot1, team_a/robot1).
+_ROBOT_NAME = re.compile(r'[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)*')
 
 PARAMETERS = (
     Spec('rate_hz', 50.0, 'Odometry publish rate [Hz]; with publish_clock also the clock step.',
@@ -116,18 +114,30 @@ PARAMETERS = (
          low=1, high=1000000, live=True),
     Spec('path_rate_hz', 10.0, 'Rate at which poses are added to the path [Hz].',
          low=0.0, high=1000.0, low_open=True, live=True),
+    Spec('robots', [], 'Names of the robots to simulate, each with its own <name>/cmd_vel, '
+         '<name>/odom, <name>/path and frames <name>/odom -> <name>/base_footprint; empty: one '
+         'robot on cmd_vel and odom.', items=str),
+    Spec('initial_poses', [], 'Start poses as x, y, yaw [m, m, rad] per robot, one after the '
+         'other; empty: every robot at initial_x, initial_y, initial_yaw.',
+         low=-_POSITION_LIMIT, high=_POSITION_LIMIT),
 ) + TAP_PARAMETERS
 
 
-def _covariance(diagonal):
-    covariance = [0.0] * 36
-    for i, value in enumerate(diagonal):
-        covariance[7 * i] = value
-    return covariance
+def robot_names(robots):
+    """Check the robots parameter; return the names ([''] for one robot without a name)."""
+    for name in robots:
+        if not _ROBOT_NAME.fullmatch(name):
+            raise ParameterError(
+                f"parameter 'robots' holds {name!r}, which is not a relative ROS name (letters, "
+                'digits and _, not starting with a digit; / between parts)')
+    if len(set(robots)) != len(robots):
+        twice = sorted({name for name in robots if robots.count(name) > 1})
+        raise ParameterError(f"parameter 'robots' names {', '.join(twice)} more than once")
+    return list(robots) or ['']
 
 
 class UnicycleSim(Node):
-    """Simulate one unicycle robot (see the module docstring)."""
+    """Simulate one unicycle robot, or one per name in ``robots`` (see the module docstring)."""
 
     def __init__(self, **kwargs):
         super().__init__('unicycle_sim', **kwargs)
@@ -137,52 +147,42 @@ class UnicycleSim(Node):
             raise ParameterError(
                 "parameter 'publish_clock' is true, so this node owns time: "
                 "'use_sim_time' must be false for it")
-        self.model = UnicycleModel(
-            p.initial_x, p.initial_y, p.initial_yaw,
-            p.max_linear_speed, p.max_angular_speed, p.max_linear_accel, p.max_angular_accel)
+        names = robot_names(p.robots)
+        if p.initial_poses and len(p.initial_poses) != 3 * len(names):
+            raise ParameterError(
+                f"parameter 'initial_poses' must hold x, y, yaw for each of the {len(names)} "
+                f'robot(s), {3 * len(names)} values; got {len(p.initial_poses)}')
+        self.fleet = Fleet(
+            self._initial_poses(len(names)), max_linear_speed=p.max_linear_speed,
+            max_angular_speed=p.max_angular_speed, max_linear_accel=p.max_linear_accel,
+            max_angular_accel=p.max_angular_accel)
         self._step_ns = round(_NS / p.rate_hz)
-        self._odom_msg = Odometry()
-        # In a namespace the default frames get its prefix (robot1/odom), as on /tf.
-        frame = {spec.name: spec.default for spec in PARAMETERS}
-        ns = self.get_namespace()
-        self._odom_msg.header.frame_id = resolve_frame(ns, p.odom_frame_id, frame['odom_frame_id'])
-        self._odom_msg.child_frame_id = resolve_frame(ns, p.base_frame_id, frame['base_frame_id'])
-        self._odom_msg.pose.covariance = _covariance(p.pose_covariance_diagonal)
-        self._odom_msg.twist.covariance = _covariance(p.twist_covariance_diagonal)
-        self._timeout_ns = round(p.cmd_vel_timeout * _NS)
-
+        self.timeout_ns = round(p.cmd_vel_timeout * _NS)
+        # Per robot, in arrays so one numpy step finds who has something to do on the way:
+        # the time each pose is integrated up to, its cmd_vel deadline, early commands held.
+        self.integrated_ns = np.full(len(names), NOT_YET, dtype=np.int64)
+        self.deadline_ns = np.full(len(names), NO_DEADLINE, dtype=np.int64)
+        self.has_early = np.zeros(len(names), dtype=bool)
         # Simulated time in integer nanoseconds so many steps add up without rounding drift.
         self._sim_ns = 0
-        self._integrated_ns = None
-        self._last_cmd_ns = None
-        # On another simulator's clock: stamped commands that are ahead of this node's clock
-        # (sent for a step whose /clock has not reached us yet), as (stamp_ns, linear, angular).
-        self._early_commands = []
+        self.lockstep = None
 
         # Where else the simulator's traffic goes (an MCAP file, Foxglove): see taps.py.
         self.taps = open_taps(self)
-        self._odom_pub = self.create_publisher(Odometry, 'odom', 10)
-        self._path_pub = self.create_publisher(Path, 'path', 1)
-        self._tf = OdomTransform(self) if p.publish_tf else None
-        self._path = deque(maxlen=p.path_length)
+        self.robots = [Robot(self, i, name, model)
+                       for i, (name, model) in enumerate(zip(names, self.fleet.robots))]
+        self._tf = OdomTransform(self, len(names)) if p.publish_tf else None
         self._path_every = max(1, round(p.rate_hz / p.path_rate_hz))
         self._odom_count = 0
         self._check_every = max(1, round(p.rate_hz))
-        self._warned_publishers = False
-        if p.stamped:
-            sub = self.create_subscription(TwistStamped, 'cmd_vel', self._on_twist_stamped, 10)
-        else:
-            sub = self.create_subscription(Twist, 'cmd_vel', self._on_twist, 10)
-        self._cmd_topic = sub.topic_name
         self.create_service(Empty, '~/reset', self._on_reset)
 
         self.lockstep_owner = None
-        self.lockstep = None
         if p.publish_clock:
             self._clock_pub = self.create_publisher(
                 ClockMsg, '/clock', QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE))
             self.clock_topic = self._clock_pub.topic_name
-            self._integrated_ns = 0
+            self.integrated_ns[:] = 0
             self.clock_wall = time.monotonic()
             self._reaction_s = 0.0
             self._answered = True
@@ -203,12 +203,25 @@ class UnicycleSim(Node):
             if self.get_parameter('use_sim_time').value:
                 # Another simulator owns the clock: take part, so it waits for this robot.
                 self.lockstep = take_part(self)
+        where = (f"{len(names)} robots ({', '.join(names)})" if p.robots else
+                 f'Unicycle at ({p.initial_x:.3f}, {p.initial_y:.3f}, {p.initial_yaw:.3f} rad)')
         self.get_logger().info(
-            f'Unicycle at ({p.initial_x:.3f}, {p.initial_y:.3f}, {p.initial_yaw:.3f} rad), '
-            f'odom at {p.rate_hz:g} Hz, cmd_vel timeout {p.cmd_vel_timeout:g} s'
+            f'{where}, odom at {p.rate_hz:g} Hz, cmd_vel timeout {p.cmd_vel_timeout:g} s'
             + (f', publishing /clock at up to {p.real_time_factor:g}x real time'
                + (' in lockstep' if p.lockstep else ' (free clock)')
                if p.publish_clock else ''))
+
+    @property
+    def model(self):
+        """Return the first robot's UnicycleModel (the only one without ``robots``)."""
+        return self.fleet.robots[0]
+
+    def _initial_poses(self, count):
+        p = self.params
+        if p.initial_poses:
+            values = p.initial_poses
+            return [tuple(values[3 * i:3 * i + 3]) for i in range(count)]
+        return [(p.initial_x, p.initial_y, p.initial_yaw)] * count
 
     # -- time -------------------------------------------------------------------------------
 
@@ -218,42 +231,26 @@ class UnicycleSim(Node):
             return self._sim_ns
         return self.get_clock().now().nanoseconds
 
-    def _advance_to(self, now_ns):
-        """Integrate the pose up to now_ns, applying early commands at their stamps on the way."""
-        early = self._early_commands
-        if self._integrated_ns is not None and now_ns < self._integrated_ns:
-            early.clear()  # the clock jumped back: they were meant for a time that is gone
-        while early and early[0][0] <= now_ns:
-            stamp_ns, linear, angular = early.pop(0)
-            self._integrate_to(stamp_ns)
-            self._apply(linear, angular, stamp_ns)
-        self._integrate_to(now_ns)
+    def advance_all(self, now_ns):
+        """
+        Integrate every robot up to now_ns.
 
-    def _integrate_to(self, now_ns):
-        """Integrate the pose up to now_ns, stopping the robot at a cmd_vel timeout on the way."""
-        if self._integrated_ns is None or now_ns < self._integrated_ns:
-            # First call, or the clock jumped back (e.g. a replayed /clock): restart from here,
-            # and count the cmd_vel timeout from here too, not from a time that is now ahead.
-            self._integrated_ns = now_ns
-            if self._last_cmd_ns is not None:
-                self._last_cmd_ns = min(self._last_cmd_ns, now_ns)
-            return
-        deadline = None
-        if self._timeout_ns > 0 and self._last_cmd_ns is not None and self._moving():
-            deadline = self._last_cmd_ns + self._timeout_ns
-        if deadline is not None and deadline <= now_ns:
-            self.model.advance(max(0, deadline - self._integrated_ns) / _NS)
-            self._integrated_ns = max(self._integrated_ns, deadline)
-            self.model.command(0.0, 0.0)
-            self._last_cmd_ns = None
-            self.get_logger().warning(
-                f'No cmd_vel for {self.params.cmd_vel_timeout:g} s: stopping the robot')
-        self.model.advance((now_ns - self._integrated_ns) / _NS)
-        self._integrated_ns = now_ns
-
-    def _moving(self):
-        m = self.model
-        return bool(m.target_linear or m.target_angular or m.linear or m.angular)
+        One numpy step for all but the robots with a cmd_vel timeout, an early command or a
+        clock jump on the way, which go one by one.
+        """
+        integrated = self.integrated_ns
+        special = ((self.deadline_ns <= now_ns) | self.has_early | (integrated > now_ns)
+                   | (integrated == NOT_YET))
+        for i in np.flatnonzero(special).tolist():
+            self.robots[i].advance_to(now_ns)
+        behind = integrated < now_ns
+        if behind.all():
+            self.fleet.advance((now_ns - integrated) / _NS)
+            integrated[:] = now_ns
+        elif behind.any():
+            index = np.flatnonzero(behind)
+            self.fleet.advance((now_ns - integrated[index]) / _NS, index)
+            integrated[index] = now_ns
 
     def _on_clock_timer(self):
         if self.lockstep_owner is not None:
@@ -271,14 +268,14 @@ class UnicycleSim(Node):
         if self.lockstep_owner is not None:
             self.lockstep_owner.next_step(self._sim_ns + self._step_ns)
         self._sim_ns += self._step_ns
-        self._advance_to(self._sim_ns)
+        self.advance_all(self._sim_ns)
         self._publish_clock()
         self._publish_odom()
         self.clock_wall = time.monotonic()
         self._answered = False
 
     def _on_odom_timer(self):
-        self._advance_to(self.now_ns())
+        self.advance_all(self.now_ns())
         self._publish_odom()
 
     def _publish_clock(self):
@@ -288,42 +285,8 @@ class UnicycleSim(Node):
         if self.taps:
             self.taps.write(self._clock_pub.topic_name, msg, self._sim_ns)
 
-    # -- commands ---------------------------------------------------------------------------
-
-    def _on_twist_stamped(self, msg):
-        if self.taps:
-            self.taps.write(self._cmd_topic, msg, self.now_ns())
-        stamp_ns = msg.header.stamp.sec * _NS + msg.header.stamp.nanosec
-        age_ns = self.now_ns() - stamp_ns
-        limit_ns = round(self.params.max_command_age * _NS)
-        if stamp_ns != 0 and limit_ns > 0 and abs(age_ns) > limit_ns:
-            when = 'old' if age_ns > 0 else 'in the future'
-            self.get_logger().warning(
-                f'Refusing cmd_vel stamped {abs(age_ns) / _NS:.3f} s {when} (more than '
-                f'max_command_age {self.params.max_command_age:g} s); keeping the last command',
-                throttle_duration_sec=1.0)
-            return
-        self._on_twist(msg.twist, stamp_ns)
-
-    def _on_twist(self, twist, stamp_ns=None):
-        if self.taps and stamp_ns is None:
-            self.taps.write(self._cmd_topic, twist, self.now_ns())
-        linear = twist.linear.x
-        angular = twist.angular.z
-        if not (abs(linear) <= _COMMAND_LIMIT and abs(angular) <= _COMMAND_LIMIT):
-            # NaN fails both comparisons, so it is refused here too.
-            self.get_logger().warning(
-                f'Refusing cmd_vel with a non-finite or absurd value (linear.x={linear}, '
-                f'angular.z={angular}; the limit is {_COMMAND_LIMIT:g}); keeping the last '
-                'command', throttle_duration_sec=1.0)
-            return
-        now_ns = self.now_ns()
-        if self.lockstep is not None and stamp_ns is not None and stamp_ns > now_ns:
-            # Sent for a clock step that is on its way to us: take effect then, not now.
-            bisect.insort(self._early_commands, (stamp_ns, linear, angular))
-            return
-        self._advance_to(now_ns)
-        self._apply(linear, angular, now_ns)
+    def command_arrived(self):
+        """Note a robot's command: with a free clock, the first after a step answers it."""
         if self._clock_pub is not None and not self._answered:
             # Only the first command after a step answers it: commands from a publisher that
             # does not follow the clock (teleop, a second controller, a flood) arrive at any
@@ -332,42 +295,28 @@ class UnicycleSim(Node):
             reaction_s = min(time.monotonic() - self.clock_wall, self._max_reaction_s)
             self._reaction_s = max(reaction_s, self._reaction_s)
 
-    def _apply(self, linear, angular, at_ns):
-        self.model.command(linear, angular)
-        self._last_cmd_ns = at_ns
-
-    def _check_publishers(self):
-        count = self.count_publishers(self._cmd_topic)
-        if count > 1 and not self._warned_publishers:
-            self._warned_publishers = True
-            self.get_logger().warning(
-                f'{count} nodes publish on {self._cmd_topic}: their commands interleave and the '
-                'latest one wins')
-        elif count <= 1:
-            self._warned_publishers = False
+    # -- parameters and reset ---------------------------------------------------------------
 
     def _on_parameter(self, name, value):
         """Make a live parameter's new value take effect (declare() has checked and stored it)."""
-        self._advance_to(self.now_ns())  # up to now, the old value held
-        odom = self._odom_msg
+        self.advance_all(self.now_ns())  # up to now, the old value held
+        robots = self.robots
         if name == 'cmd_vel_timeout':
-            self._timeout_ns = round(value * _NS)
+            self.timeout_ns = round(value * _NS)
+            for robot in robots:
+                robot.update_deadline()
         elif name in ('max_linear_speed', 'max_angular_speed', 'max_linear_accel',
                       'max_angular_accel'):
-            self.model.set_limit(name, value)
-        elif name == 'pose_covariance_diagonal':
-            odom.pose.covariance = _covariance(value)
-        elif name == 'twist_covariance_diagonal':
-            odom.twist.covariance = _covariance(value)
+            for robot in robots:
+                robot.model.set_limit(name, value)
+        elif name in ('pose_covariance_diagonal', 'twist_covariance_diagonal'):
+            for robot in robots:
+                odom = robot.odom_msg
+                (odom.pose if name.startswith('pose') else odom.twist).covariance = (
+                    covariance(value))
         elif name in ('odom_frame_id', 'base_frame_id'):
-            # As at start: in a namespace the default frame gets its prefix (robot1/odom).
-            default = next(spec.default for spec in PARAMETERS if spec.name == name)
-            frame = resolve_frame(self.get_namespace(), value, default)
-            if name == 'odom_frame_id':
-                odom.header.frame_id = frame
-                self._path.clear()  # a path is in one frame
-            else:
-                odom.child_frame_id = frame
+            for robot in robots:
+                robot.set_frame(name, value)
         elif name == 'real_time_factor' and self.clock_timer is not None:
             self.step_budget_s = self._step_ns / _NS / value
             period_s = self.step_budget_s
@@ -377,68 +326,46 @@ class UnicycleSim(Node):
             if not self.clock_timer.is_canceled():  # (the harness steps it instead)
                 self.clock_timer.reset()
         elif name == 'path_length':
-            self._path = deque(self._path, maxlen=value)  # keeps the newest
+            for robot in robots:
+                robot.path = deque(robot.path, maxlen=value)  # keeps the newest
         elif name == 'path_rate_hz':
             self._path_every = max(1, round(self.params.rate_hz / value))
         # The others are read where they are used: initial_* by ~/reset, lockstep_timeout by
         # the lockstep owner, max_command_age by the stamped subscription.
 
     def _on_reset(self, request, response):
-        p = self.params
-        self._advance_to(self.now_ns())
-        self.model.reset(p.initial_x, p.initial_y, p.initial_yaw)
-        self._last_cmd_ns = None
-        self._early_commands.clear()
-        self._path.clear()
-        self.get_logger().info('Reset to the initial pose')
+        self.advance_all(self.now_ns())
+        for robot, pose in zip(self.robots, self._initial_poses(len(self.robots))):
+            robot.reset(*pose)
+        self.get_logger().info(
+            'Reset every robot to its initial pose' if self.params.robots
+            else 'Reset to the initial pose')
         self._publish_odom()
         return response
 
     # -- odometry ---------------------------------------------------------------------------
 
     def _publish_odom(self):
-        m = self.model
-        # One message reused: frames and covariances are set once, in __init__.
-        msg = self._odom_msg
-        msg.header.stamp = Time(nanoseconds=self._integrated_ns).to_msg()
-        msg.pose.pose.position.x = m.x
-        msg.pose.pose.position.y = m.y
-        q = msg.pose.pose.orientation
-        q.x, q.y, q.z, q.w = quaternion_from_yaw(m.yaw)
-        msg.twist.twist.linear.x = m.linear
-        msg.twist.twist.angular.z = m.angular
-        self._odom_pub.publish(msg)
-        tf = self._tf.publish(msg) if self._tf is not None else None
-        if self.taps:
-            self.taps.write(self._odom_pub.topic_name, msg, self._integrated_ns)
-            if tf is not None:
-                self.taps.write(self._tf.publisher.topic_name, tf, self._integrated_ns)
+        """Publish every robot's odometry (and one /tf message with all of them)."""
+        fleet = self.fleet
+        stamp_ns = int(self.integrated_ns.max())
+        stamp = Time(nanoseconds=stamp_ns).to_msg()
+        half = 0.5 * fleet.yaw
+        odoms = [robot.publish_odom(stamp, stamp_ns, *values) for robot, *values in zip(
+            self.robots, fleet.x.tolist(), fleet.y.tolist(), np.sin(half).tolist(),
+            np.cos(half).tolist(), fleet.linear.tolist(), fleet.angular.tolist())]
+        if self._tf is not None:
+            tf = self._tf.publish(odoms)
+            if self.taps:
+                self.taps.write(self._tf.publisher.topic_name, tf, stamp_ns)
         if self._odom_count % self._path_every == 0:
-            self._record_path(msg)
+            for robot in self.robots:
+                robot.record_path(stamp_ns)
         if self._odom_count % self._check_every == 0:
             # A graph query per second, not per message: cmd_vel may arrive at kHz rates.
-            self._check_publishers()
+            for robot in self.robots:
+                robot.check_publishers()
         self._odom_count += 1
-
-    def _record_path(self, odom):
-        # Copied, not referenced: the odometry message is reused for the next publish.
-        pose = PoseStamped()
-        pose.header.frame_id = odom.header.frame_id
-        pose.header.stamp = odom.header.stamp
-        pose.pose.position.x = odom.pose.pose.position.x
-        pose.pose.position.y = odom.pose.pose.position.y
-        pose.pose.orientation.z = odom.pose.pose.orientation.z
-        pose.pose.orientation.w = odom.pose.pose.orientation.w
-        self._path.append(pose)
-        if self._path_pub.get_subscription_count() == 0 and not self.taps.wants_path:
-            # Converting a long path to a message is the costliest thing here: skip it unseen.
-            return
-        path = Path()
-        path.header = odom.header
-        path.poses = list(self._path)
-        self._path_pub.publish(path)
-        if self.taps:
-            self.taps.write(self._path_pub.topic_name, path, self._integrated_ns)
 
     def shutdown_hook(self):
         """Close what the taps write (an MCAP file gets its index), whatever ended the run."""

@@ -24,7 +24,7 @@ from sim_diffdrive.angles import quaternion_from_yaw
 from sim_diffdrive.angles import yaw_from_quaternion
 from sim_diffdrive.angles import YawAccumulator
 from sim_diffdrive.kinematics import _sinc
-from sim_diffdrive.kinematics import _SMALL_ANGLE
+from sim_diffdrive.kinematics import SMALL_ANGLE
 from sim_diffdrive.kinematics import integrate
 from sim_diffdrive.kinematics import limit_command
 from sim_diffdrive.kinematics import UnicycleModel
@@ -182,11 +182,11 @@ def test_small_turn_rate_is_continuous(w):
     assert math.hypot(x - x_line, y - y_line) <= 0.5 * v * abs(w) * t * t + 1e-15
 
 
-@pytest.mark.parametrize('h', [_SMALL_ANGLE, -_SMALL_ANGLE])
+@pytest.mark.parametrize('h', [SMALL_ANGLE, -SMALL_ANGLE])
 def test_sinc_has_no_jump_at_the_series_threshold(h):
     below = h * (1.0 - 1e-9)
     above = h * (1.0 + 1e-9)
-    assert abs(below) < _SMALL_ANGLE <= abs(above)
+    assert abs(below) < SMALL_ANGLE <= abs(above)
     for x in (below, math.nextafter(h, 0.0), h, above):
         assert _sinc(x) == pytest.approx(exact_sinc(x), abs=2.3e-16)
     # sinc'(1e-4) is about -3.3e-5, so 2e-13 apart in x means ~1e-17 apart in value.
@@ -197,7 +197,7 @@ def test_sinc_has_no_jump_at_the_series_threshold(h):
 def test_integrate_has_no_jump_at_the_series_threshold():
     # The series applies to half the turn, so the threshold is at w * dt = 2e-4.
     v, dt, yaw0 = 3.0, 0.5, -0.4
-    w_threshold = 2.0 * _SMALL_ANGLE / dt
+    w_threshold = 2.0 * SMALL_ANGLE / dt
     for w in (w_threshold * (1.0 - 1e-9), w_threshold * (1.0 + 1e-9)):
         x, y, _ = integrate(0.0, 0.0, yaw0, v, w, dt)
         x_ref, y_ref = exact_arc(0.0, 0.0, yaw0, v, w, dt)

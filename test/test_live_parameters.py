@@ -235,9 +235,9 @@ def test_other_live_parameters_take_effect(graph, sim_params):
     covariance = probe.odom.twist.covariance
     assert [covariance[7 * i] for i in range(6)] == [1.0, 2.0, 3.0, 4.0, 5.0, 6.0]
     graph.step_for(1.0)  # 10 poses at the default path_rate_hz
-    newest = list(sim._path)[-3:]
+    newest = list(sim.robots[0].path)[-3:]
     assert params.set_param('path_length', '3').successful
-    assert list(sim._path) == newest
+    assert list(sim.robots[0].path) == newest
     assert params.set_param('initial_x', '2.0').successful
     assert pose_of(probe.odom)[0] == 0.0  # not before the next ~/reset
 
