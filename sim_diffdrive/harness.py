@@ -195,7 +195,7 @@ class SimGraph(Lockstep):
             rclpy.init(context=context, domain_id=isolated_domain_id())
         super().__init__(executor_class(context=context))
         self.context = context
-        self._probe = None
+        self._probes = {}  # robot name (None: the one on odom) -> listening Probe
 
     def __enter__(self):
         return self
@@ -226,7 +226,9 @@ class SimGraph(Lockstep):
         params.setdefault('lockstep', False)
         sim = UnicycleSim(context=self.context, parameter_overrides=_overrides(params))
         self.add_clock_owner(sim) if stepped else self.add(sim)
-        self._listen()  # to odometry from the first message on
+        # Listen to odometry from the first message on (each robot's, with robots).
+        for robot in params.get('robots') or [None]:
+            self._listen(robot)
         return sim
 
     def node(self, node_class, namespace=None, **params):
@@ -245,21 +247,27 @@ class SimGraph(Lockstep):
         """Return the graph's listening Probe on ``odom`` (odoms, odom_walls)."""
         return self._listen()
 
-    def _listen(self):
-        if self._probe is None:
-            self._probe = self.probe(name='sim_graph_odom', listen_only=True)
-        return self._probe
+    def listener(self, robot):
+        """Return the graph's listening Probe on robot's ``<robot>/odom`` (see ``robots``)."""
+        return self._listen(robot)
 
-    def pose(self):
-        """Return (x, y, yaw) of the latest odometry the graph has seen."""
-        odom = self.odom()
+    def _listen(self, robot=None):
+        probe = self._probes.get(robot)
+        if probe is None:
+            probe = self._probes[robot] = self.probe(
+                name='sim_graph_odom', namespace=robot, listen_only=True)
+        return probe
+
+    def pose(self, robot=None):
+        """Return (x, y, yaw) of the latest odometry the graph has seen (of robot, if named)."""
+        odom = self.odom(robot)
         if odom is None:
             raise RuntimeError('no odometry yet: start a simulator with sim() and step')
         return pose_of(odom)
 
-    def odom(self):
-        """Return the latest Odometry message the graph has seen, or None."""
-        return self.odometry.odom
+    def odom(self, robot=None):
+        """Return the latest Odometry message the graph has seen (robot's, if named), or None."""
+        return self._listen(robot).odom
 
     def wait_for_odometry(self, timeout=20.0, process=None):
         """
@@ -282,7 +290,7 @@ class SimGraph(Lockstep):
 
     def close(self):
         super().close()
-        self._probe = None
+        self._probes = {}
         if self._own_context:
             rclpy.try_shutdown(context=self.context)
 

@@ -1,0 +1,104 @@
+# Copyright 2026 motion_challenges contributors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""Many robots in numpy arrays, bit for bit the single robot's kinematics (no ROS)."""
+
+import math
+import random
+
+import numpy as np
+import pytest
+from sim_diffdrive.angles import normalize_angle
+from sim_diffdrive.fleet import Fleet
+from sim_diffdrive.fleet import integrate_all
+from sim_diffdrive.fleet import normalize_angles
+from sim_diffdrive.kinematics import integrate
+from sim_diffdrive.kinematics import SMALL_ANGLE
+from sim_diffdrive.kinematics import UnicycleModel
+
+
+def state(model):
+    return (model.x, model.y, model.yaw, model.linear, model.angular)
+
+
+def test_normalize_angles_equals_normalize_angle_bit_for_bit():
+    rng = random.Random(7)
+    angles = [rng.uniform(-9.0, 9.0) for _ in range(20000)]
+    # The edges: +-pi (a tie that math.remainder breaks to +pi), several turns, huge ones.
+    angles += [math.pi, -math.pi, 2 * math.pi, -2 * math.pi, 3 * math.pi, -3 * math.pi,
+               math.nextafter(math.pi, 10.0), math.nextafter(-math.pi, -10.0), 6.0, -6.0,
+               100.0, -1e5, 0.0, -0.0]
+    wrapped = normalize_angles(np.array(angles)).tolist()
+    assert wrapped == [normalize_angle(a) for a in angles]
+
+
+def test_integrate_all_equals_integrate_bit_for_bit_through_the_small_angle_switch():
+    rng = random.Random(8)
+    rows = [(rng.uniform(-5, 5), rng.uniform(-5, 5), rng.uniform(-3.2, 3.2),
+             rng.uniform(-2, 2), rng.choice([0.0, 1e-9, 2 * SMALL_ANGLE, rng.uniform(-4, 4)]),
+             rng.choice([0.02, 0.001, 0.37])) for _ in range(5000)]
+    x, y, yaw, linear, angular, dt = (np.array(column) for column in zip(*rows))
+    batch = zip(*(a.tolist() for a in integrate_all(x, y, yaw, linear, angular, dt)))
+    assert list(batch) == [integrate(*row) for row in rows]
+
+
+@pytest.mark.parametrize('limits', [{}, {'max_linear_accel': 0.5, 'max_angular_accel': 1.0,
+                                         'max_linear_speed': 0.8}])
+def test_a_fleet_moves_each_robot_as_a_unicycle_model_alone_would(limits):
+    """Random commands to 64 robots, some ramping: every state equals its lone twin's."""
+    rng = random.Random(9)
+    poses = [(rng.uniform(-5, 5), rng.uniform(-5, 5), rng.uniform(-3, 3)) for _ in range(64)]
+    fleet = Fleet(poses, **limits)
+    alone = [UnicycleModel(*pose, **limits) for pose in poses]
+    ramped = 0
+    for _ in range(300):
+        for robot, twin in zip(fleet.robots, alone):
+            if rng.random() < 0.05:
+                command = (rng.choice([0.0, rng.uniform(-1, 1)]),
+                           rng.choice([0.0, 1e-7, rng.uniform(-3, 3)]))
+                robot.command(*command)
+                twin.command(*command)
+        ramped += int(fleet.ramping().sum())
+        fleet.advance(0.02)
+        for twin in alone:
+            twin.advance(0.02)
+    assert [state(robot) for robot in fleet.robots] == [state(twin) for twin in alone]
+    assert any(state(twin)[3] for twin in alone)  # some robots were moving at the end
+    assert bool(ramped) == bool(limits)
+
+
+def test_advancing_some_robots_leaves_the_others_where_they_are():
+    fleet = Fleet([(0.0, 0.0, 0.0), (1.0, 2.0, 0.5), (3.0, 0.0, -1.0)])
+    for robot in fleet.robots:
+        robot.command(1.0, 0.5)
+    fleet.advance([0.5, 0.25], which=[0, 2])
+    assert state(fleet.robots[1]) == (1.0, 2.0, 0.5, 1.0, 0.5)
+    expected = UnicycleModel(3.0, 0.0, -1.0)
+    expected.command(1.0, 0.5)
+    expected.advance(0.25)
+    assert state(fleet.robots[2]) == state(expected)
+    assert fleet.robots[0].x == pytest.approx(2.0 * math.sin(0.25), rel=1e-12)  # (v/w) sin(wt)
+
+
+def test_a_robot_is_a_unicycle_model_on_the_fleets_arrays():
+    fleet = Fleet([(0.0, 0.0, 0.0)] * 2, max_angular_speed=1.0)
+    robot = fleet.robots[1]
+    assert isinstance(robot, UnicycleModel)
+    robot.command(0.3, 5.0)
+    assert (fleet.linear.tolist(), fleet.angular.tolist()) == ([0.0, 0.3], [0.0, 1.0])
+    robot.set_limit('max_angular_speed', 2.0)
+    assert fleet.angular[1] == 2.0
+    assert fleet.moving().tolist() == [False, True]
+    robot.reset(1.0, 1.0, 4.0)
+    assert (fleet.x[1], fleet.yaw[1], fleet.moving()[1]) == (1.0, normalize_angle(4.0), False)
