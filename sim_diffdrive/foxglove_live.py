@@ -87,8 +87,7 @@ class FoxgloveLive:
         if not node.params.publish_tf:
             self._transforms = channels.FrameTransformsChannel(
                 TRANSFORM_TOPIC, context=self._context)
-        self._scene_frame = None
-        self._scene_wall = 0.0
+        self._scene_walls = {}  # robot frame -> when its scene entity was last sent [monotonic]
         self._path_wall = 0.0
         node.get_logger().info(f'Foxglove: {self.url} (Open connection in Foxglove)')
 
@@ -136,12 +135,12 @@ class FoxgloveLive:
                 child_frame_id=child_frame, translation=m.Vector3(x=p.x, y=p.y, z=p.z),
                 rotation=m.Quaternion(x=q.x, y=q.y, z=q.z, w=q.w))]), log_time=stamp_ns)
         if not self._scene.has_sinks():
-            self._scene_frame = None  # a new subscriber gets it at once
+            self._scene_walls.clear()  # a new subscriber gets every robot at once
             return
         now = time.monotonic()
-        if child_frame == self._scene_frame and now - self._scene_wall < SCENE_PERIOD_S:
+        if now - self._scene_walls.get(child_frame, -SCENE_PERIOD_S) < SCENE_PERIOD_S:
             return
-        self._scene_frame, self._scene_wall = child_frame, now
+        self._scene_walls[child_frame] = now
         self._scene.log(robot_scene(m, child_frame, stamp_ns), log_time=stamp_ns)
 
 
@@ -163,6 +162,6 @@ def robot_scene(messages, frame, stamp_ns):
         head_length=ARROW_LENGTH * 0.3, head_diameter=0.09,
         color=m.Color(r=1.0, g=0.55, b=0.0, a=1.0))
     entity = m.SceneEntity(
-        timestamp=_timestamp(m, stamp_ns), frame_id=frame, id='robot', frame_locked=True,
+        timestamp=_timestamp(m, stamp_ns), frame_id=frame, id=frame, frame_locked=True,
         cubes=[body], arrows=[heading])
     return m.SceneUpdate(entities=[entity])

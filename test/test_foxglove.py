@@ -231,6 +231,23 @@ def test_draws_the_robot_and_its_transform_without_tf(graph, client_for):
     assert b'base_footprint' in by_topic['/foxglove/odom_transform'][-1]
 
 
+def test_draws_every_robot_of_a_fleet_once(graph, client_for):
+    port = free_port()
+    graph.sim(foxglove_port=port, robots=['r1', 'r2'])
+    client = client_for(port)
+    graph.step()
+    client.wait_for_channels('/foxglove/robot', '/r1/odom', '/r2/odom')
+    client.subscribe('/foxglove/robot')
+    scenes = [first_message(graph, client)[2]]
+    graph.step(5)
+    scenes += [payload for topic, _, payload in client.messages() if topic == '/foxglove/robot']
+    # One entity per robot (its id is its frame, so neither replaces the other), then quiet.
+    assert len(scenes) == 2
+    assert {b'r1/base_footprint' in scenes[0], b'r1/base_footprint' in scenes[1]} == {
+        True, False}
+    assert any(b'r2/base_footprint' in scene for scene in scenes)
+
+
 def test_a_port_in_use_is_reported_and_the_simulator_runs(procs):
     with socket.socket() as taken:
         taken.bind(('127.0.0.1', 0))
