@@ -23,6 +23,11 @@ checked between waits of at most 0.1 s, so no callback is cut off halfway.  The 
 ``shutdown_hook`` (the motions' final stop) then runs while the context is still valid; should
 it fail, the error is logged, the exit code is 1, and the node is destroyed and rclpy shut down
 all the same.
+
+``make_node()`` may also return several nodes (a list or tuple), which then share the one
+executor: several motions in one process, say, each in its robot's namespace.  The run ends
+when every node that has a ``done`` attribute is done, and on exit every node's hook runs, even
+after another's failed, before any node is destroyed.
 """
 
 import signal
@@ -59,11 +64,17 @@ class UsageError(Exception):
     """The user's input cannot start a run (the message says why)."""
 
 
-def spin_until_done(executor, node, interrupts):
-    """Spin until ``node.done`` is true, the context shuts down or the user interrupts."""
+def spin_until_done(executor, nodes, interrupts):
+    """
+    Spin until every node with a ``done`` attribute is done, or the context or user stops it.
+
+    ``nodes`` is one node or a sequence of them; nodes without ``done`` (a simulator, say)
+    never end the spin by themselves, so with none that has one it runs until interrupted.
+    """
+    waiting = [node for node in _as_list(nodes) if hasattr(node, 'done')]
     interrupts.spinning = True
     try:
-        while executor.context.ok() and not getattr(node, 'done', False):
+        while executor.context.ok() and not (waiting and all(n.done for n in waiting)):
             executor.spin_once(timeout_sec=_SPIN_TIMEOUT)
             if interrupts.requested:
                 raise KeyboardInterrupt
@@ -71,12 +82,20 @@ def spin_until_done(executor, node, interrupts):
         interrupts.spinning = False
 
 
+def worst_exit_code(nodes):
+    """Return the largest ``exit_code`` among the nodes that have one (0 when none has)."""
+    codes = [getattr(node, 'exit_code', None) for node in _as_list(nodes)]
+    return max((code for code in codes if code is not None), default=EXIT_OK)
+
+
 def run(make_node, args=None):
     """
-    Initialise rclpy, build a node with ``make_node()``, spin it until done, clean up.
+    Initialise rclpy, build the node(s) with ``make_node()``, spin until done, clean up.
 
-    Returns the process exit code: the node's ``exit_code`` when it finishes by itself, 0 for
-    a user interrupt (Ctrl-C or SIGTERM), 2 for a bad parameter or input, 1 otherwise.
+    Returns the process exit code: the worst (largest) ``exit_code`` of the nodes when they
+    finish by themselves; for a user interrupt (Ctrl-C or SIGTERM) 0, or the worst code of
+    the nodes that had already finished; 2 for a bad parameter or input; 1 otherwise, and 1
+    whenever a node's ``shutdown_hook`` failed.
     """
     logger = rclpy.logging.get_logger('motion_challenges')
     try:
@@ -88,32 +107,54 @@ def run(make_node, args=None):
     interrupts = _Interrupts()
     signal.signal(signal.SIGINT, interrupts)
     signal.signal(signal.SIGTERM, interrupts)
-    node = None
+    nodes = []
     exit_code = EXIT_FAILED
     try:
-        node = make_node()
-        logger = node.get_logger()
+        nodes = _as_list(make_node())
+        if len(nodes) == 1:
+            logger = nodes[0].get_logger()
         executor = EventsExecutor()
-        executor.add_node(node)
-        spin_until_done(executor, node, interrupts)
-        exit_code = getattr(node, 'exit_code', EXIT_OK)
+        for node in nodes:
+            executor.add_node(node)
+        spin_until_done(executor, nodes, interrupts)
+        exit_code = worst_exit_code(nodes)
     except (ParameterError, UsageError) as error:
         logger.error(str(error))
         exit_code = EXIT_USAGE
     except KeyboardInterrupt:
         logger.info('Interrupted by the user')
-        exit_code = EXIT_OK
+        # A motion that had already failed before the interrupt still fails the run.
+        exit_code = worst_exit_code([n for n in nodes if getattr(n, 'done', False)])
     except ExternalShutdownException:
         exit_code = EXIT_FAILED
     finally:
         try:
-            if node is not None:
-                if not _run_shutdown_hook(node, logger):
+            # Every hook first (the motions' final stops, while a simulator in the same
+            # process still runs), then every node is destroyed.
+            hooks_ok = [_run_shutdown_hook(node, node.get_logger()) for node in nodes]
+            if not all(hooks_ok):
+                exit_code = EXIT_FAILED
+            for node in nodes:
+                if not _destroy(node):
                     exit_code = EXIT_FAILED
-                node.destroy_node()
         finally:
             rclpy.try_shutdown()
     return exit_code
+
+
+def _as_list(nodes):
+    """Return nodes (one node, or a list or tuple of them) as a list."""
+    return list(nodes) if isinstance(nodes, (list, tuple)) else [nodes]
+
+
+def _destroy(node):
+    """Destroy the node; return False when that failed (it is logged), so the others still go."""
+    try:
+        node.destroy_node()
+    except Exception as error:
+        node.get_logger().error(f'destroy_node failed ({type(error).__name__}: {error})')
+        return False
+    return True
 
 
 def _run_shutdown_hook(node, logger):

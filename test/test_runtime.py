@@ -26,27 +26,34 @@ import rclpy
 from rclpy.node import Node
 from sim_diffdrive.runtime import EXIT_FAILED
 from sim_diffdrive.runtime import EXIT_OK
+from sim_diffdrive.runtime import EXIT_USAGE
 from sim_diffdrive.runtime import run
 
 
 class Finished(Node):
     """A node that is done at once with exit_code; its shutdown_hook can fail."""
 
-    def __init__(self, exit_code=EXIT_OK, hook_error=None):
-        super().__init__('finished')
-        self.done = True
+    def __init__(self, exit_code=EXIT_OK, hook_error=None, name='finished', done=True,
+                 journal=None):
+        super().__init__(name)
+        self.done = done
         self.exit_code = exit_code
         self.hook_error = hook_error
         self.calls = []
+        self.journal = [] if journal is None else journal  # (name, call) across nodes
 
     def shutdown_hook(self):
-        self.calls.append('shutdown_hook')
+        self._called('shutdown_hook')
         if self.hook_error is not None:
             raise self.hook_error
 
     def destroy_node(self):
-        self.calls.append('destroy_node')
+        self._called('destroy_node')
         super().destroy_node()
+
+    def _called(self, what):
+        self.calls.append(what)
+        self.journal.append((self.get_name(), what))
 
 
 @pytest.fixture
@@ -95,3 +102,89 @@ def test_a_second_ctrl_c_during_the_hook_still_cleans_up(main_process):
     assert node.calls == ['shutdown_hook', 'destroy_node']
     assert not rclpy.ok()
     assert code == EXIT_OK
+
+
+class Endless(Node):
+    """A node with no ``done`` (a simulator, say): it never ends the run by itself."""
+
+    def __init__(self):
+        super().__init__('endless')
+        self.destroyed = False
+
+    def destroy_node(self):
+        self.destroyed = True
+        super().destroy_node()
+
+
+def run_nodes(*node_kwargs, extra=()):
+    """Run Finished nodes built from node_kwargs (plus extra nodes) as one list; return them."""
+    nodes = []
+
+    def make_nodes():
+        nodes.extend(Finished(name=f'finished_{i}', **kwargs)
+                     for i, kwargs in enumerate(node_kwargs))
+        nodes.extend(make() for make in extra)
+        return nodes
+    return run(make_nodes, args=[]), nodes
+
+
+@pytest.mark.parametrize('codes', [(EXIT_OK, EXIT_OK), (EXIT_OK, EXIT_FAILED),
+                                   (EXIT_FAILED, EXIT_OK), (EXIT_OK, EXIT_USAGE, EXIT_FAILED)])
+def test_several_nodes_return_the_worst_exit_code_and_all_are_cleaned_up(main_process, codes):
+    code, nodes = run_nodes(*({'exit_code': c} for c in codes))
+    assert code == max(codes)
+    for node in nodes:
+        assert node.calls == ['shutdown_hook', 'destroy_node']
+    assert not rclpy.ok()
+
+
+def test_one_failing_hook_among_several_still_runs_the_others_and_destroys_all(
+        main_process, capfd):
+    journal = []
+    code, (failing, other) = run_nodes(
+        {'hook_error': RuntimeError('publisher is gone'), 'journal': journal},
+        {'journal': journal})
+    assert code == EXIT_FAILED
+    assert failing.calls == other.calls == ['shutdown_hook', 'destroy_node']
+    # Every hook runs before any node is destroyed (a motion's final stop may need the others).
+    assert journal == [('finished_0', 'shutdown_hook'), ('finished_1', 'shutdown_hook'),
+                       ('finished_0', 'destroy_node'), ('finished_1', 'destroy_node')]
+    assert not rclpy.ok()
+    assert 'publisher is gone' in capfd.readouterr().err
+
+
+def test_a_tuple_of_nodes_works_like_a_list(main_process):
+    built = []
+
+    def make_nodes():
+        built.extend((Finished(name='a', exit_code=EXIT_FAILED), Finished(name='b')))
+        return tuple(built)
+    assert run(make_nodes, args=[]) == EXIT_FAILED
+    assert [node.calls for node in built] == [['shutdown_hook', 'destroy_node']] * 2
+
+
+def test_a_node_without_done_does_not_hold_the_run_once_the_others_are_done(main_process):
+    code, nodes = run_nodes({}, {'exit_code': EXIT_FAILED}, extra=[Endless])
+    assert code == EXIT_FAILED
+    assert nodes[-1].destroyed
+    assert all(node.calls == ['shutdown_hook', 'destroy_node'] for node in nodes[:-1])
+
+
+class Interrupting(Finished):
+    """Not done; a timer sends this process SIGINT, as Ctrl-C would, once spinning."""
+
+    def __init__(self):
+        super().__init__(name='interrupting', done=False)
+        self.create_timer(0.01, lambda: signal.raise_signal(signal.SIGINT))
+
+
+def test_ctrl_c_runs_every_hook_and_keeps_a_failure_already_there(main_process):
+    code, nodes = run_nodes({'exit_code': EXIT_FAILED}, extra=[Interrupting])
+    assert code == EXIT_FAILED
+    assert all(node.calls == ['shutdown_hook', 'destroy_node'] for node in nodes)
+
+
+def test_ctrl_c_with_nothing_failed_exits_0(main_process):
+    code, nodes = run_nodes({}, extra=[Interrupting])
+    assert code == EXIT_OK
+    assert all(node.calls == ['shutdown_hook', 'destroy_node'] for node in nodes)
