@@ -46,6 +46,7 @@ setup(
             'circle_back_and_forth = motion_challenges.circle_back_and_forth:main',
             'timed_out_and_back = motion_challenges.timed_out_and_back:main',
             'odom_out_and_back = motion_challenges.odom_out_and_back:main',
+            'motion_fleet = motion_challenges.motion_fleet:main',
         ],
         # The sim_graph fixture, for testing controllers against the simulator.
         'pytest11': ['sim_graph = sim_diffdrive.pytest_plugin'],

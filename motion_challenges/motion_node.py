@@ -108,6 +108,9 @@ class MotionNode(Node):
     """
 
     needs_odom = False
+    # How long shutdown_hook waits for the final stop to be acknowledged [s, wall time]; a
+    # fleet of motions in one process sets 0 and waits once for all (motion_fleet.py).
+    stop_ack_timeout = 0.2
 
     def __init__(self, node_name, specs, **kwargs):
         super().__init__(node_name, **kwargs)
@@ -191,7 +194,8 @@ class MotionNode(Node):
                 self.lockstep.leave()
             # Fast DDS sends within publish(); its acknowledgement waits for a heartbeat that
             # can be seconds away, so only a short wait covers a resend on a lossy link.
-            self.cmd_pub.wait_for_all_acked(Duration(seconds=0.2))
+            if self.stop_ack_timeout > 0.0:
+                self.cmd_pub.wait_for_all_acked(Duration(seconds=self.stop_ack_timeout))
 
     # -- helpers for subclasses --------------------------------------------------------------
 

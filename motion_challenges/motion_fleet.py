@@ -1,0 +1,225 @@
+# Copyright 2026 motion_challenges contributors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+``motion_fleet``: one process runs one motion per robot, each in its robot's namespace.
+
+``-p robots:=[robot1,robot2]`` puts a motion node in ``/robot1`` and one in ``/robot2`` (after
+the fleet's own namespace, when ``-r __ns:=`` gives it one), so robot1's motion publishes on
+``/robot1/cmd_vel`` and reads ``/robot1/odom``: what a simulator per namespace, or one
+simulator with ``robots``, serves.  ``motions`` names the executable each robot runs (one name
+for all, or one per robot).  The process's parameters reach every motion node, as rclpy
+applies global arguments to every node of the context: ``-p use_sim_time:=true`` puts them all
+on sim time, and a params file can speak to all (``/**:``) or to one
+(``/robot1/odom_out_and_back:``).  All motions share one executor; the process ends when the
+last has finished, with the worst exit code, and Ctrl-C stops every robot.
+
+``build_fleet`` builds the same motion nodes in any context, for tests and the benchmark.
+"""
+
+import time
+
+from motion_challenges.circle_back_and_forth import CircleBackAndForth
+from motion_challenges.motion_node import MotionNode
+from motion_challenges.odom_out_and_back import OdomOutAndBack
+from motion_challenges.prompts import RotationRequest
+from motion_challenges.rotate_robot import RotateRobot
+from motion_challenges.timed_out_and_back import TimedOutAndBack
+from rclpy.duration import Duration
+from rclpy.exceptions import InvalidNamespaceException
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.validate_namespace import validate_namespace
+from sim_diffdrive.parameters import declare
+from sim_diffdrive.parameters import ParameterError
+from sim_diffdrive.parameters import Spec
+from sim_diffdrive.runtime import run
+
+_MOTIONS = {
+    'rotate_robot': RotateRobot,
+    'circle_back_and_forth': CircleBackAndForth,
+    'timed_out_and_back': TimedOutAndBack,
+    'odom_out_and_back': OdomOutAndBack,
+}
+
+PARAMETERS = (
+    Spec('robots', [], 'Names of the robots, one motion each in its robot namespace (robot1: '
+         '/robot1/cmd_vel and /robot1/odom), relative to the namespace of this node. Required.',
+         items=str),
+    Spec('motions', ['odom_out_and_back'],
+         'The motion (executable name) each robot runs: one for every robot, or one per robot '
+         'in the order of robots; one of ' + ', '.join(_MOTIONS) + '.', items=str),
+)
+
+
+def motion_classes():
+    """Return {executable name: node class} of the motions a fleet can run."""
+    return dict(_MOTIONS)
+
+
+def fleet_plan(robots, motions, namespace='/'):
+    """
+    Return (robot, namespace, motion) for each robot, or raise ParameterError saying why not.
+
+    robots are names relative to namespace (``robot1``, ``site_a/robot1``), each a valid ROS
+    name and none twice; motions has one executable name for all robots or one per robot.
+    """
+    if not robots:
+        raise ParameterError("parameter 'robots' must name at least one robot, e.g. "
+                             '-p robots:=[robot1,robot2]; got []')
+    seen = set()
+    plan = []
+    for robot in robots:
+        robot_ns = _robot_namespace(namespace, robot)
+        if robot_ns in seen:
+            raise ParameterError(f"parameter 'robots' names {robot!r} twice; got {robots!r}")
+        seen.add(robot_ns)
+        plan.append((robot, robot_ns))
+    if len(motions) not in (1, len(robots)):
+        raise ParameterError(
+            f"parameter 'motions' must have one motion for all robots or one per robot "
+            f'({len(robots)}); got {len(motions)}: {motions!r}')
+    for motion in motions:
+        if motion not in _MOTIONS:
+            raise ParameterError(f"parameter 'motions' names {motion!r}, which is not one of "
+                                 + ', '.join(_MOTIONS))
+    if len(motions) == 1:
+        motions = motions * len(robots)
+    return [(robot, robot_ns, motion) for (robot, robot_ns), motion in zip(plan, motions)]
+
+
+def _robot_namespace(namespace, robot):
+    if not isinstance(robot, str) or robot.startswith(('/', '~')) or not robot:
+        raise ParameterError(
+            f"parameter 'robots' takes names relative to the fleet's namespace (robot1, "
+            f'site_a/robot1); got {robot!r}')
+    robot_ns = namespace.rstrip('/') + '/' + robot
+    try:
+        validate_namespace(robot_ns)
+    except InvalidNamespaceException:
+        raise ParameterError(
+            f"parameter 'robots' has {robot!r}, which is not a valid ROS name (letters, digits "
+            "and '_', not starting with a digit, parts separated by single '/')") from None
+    return robot_ns
+
+
+def build_fleet(context, robots, motions, namespace='/', **overrides):
+    """
+    Build one motion node per robot in context, each in its robot's namespace; return them.
+
+    ``overrides`` are parameters every motion node gets (``use_sim_time=True``,
+    ``goal_distance=0.3``; a motion ignores those it does not have), on top of the context's
+    global arguments.  A rotate_robot gets its answers from parameters only (nothing is asked
+    on stdin in a fleet).  Raises ParameterError naming the robot when a motion cannot start;
+    the nodes built until then are destroyed.
+    """
+    parameter_overrides = [Parameter(name, value=value) for name, value in overrides.items()]
+    nodes = []
+    try:
+        for robot, robot_ns, motion in fleet_plan(robots, motions, namespace):
+            try:
+                nodes.append(_build_motion(context, robot_ns, motion, parameter_overrides))
+            except ParameterError as error:
+                raise ParameterError(f'robot {robot!r} ({motion}): {error}') from None
+    except BaseException:
+        for node in nodes:
+            node.destroy_node()
+        raise
+    return nodes
+
+
+def _build_motion(context, robot_ns, motion, parameter_overrides):
+    # Node-local remaps win over the process's: a global -r __ns:= (or __node:=) would
+    # otherwise put every motion in one namespace under one name.
+    node = _MOTIONS[motion](
+        namespace=robot_ns, context=context, parameter_overrides=parameter_overrides,
+        cli_args=['--ros-args', '-r', f'__ns:={robot_ns}', '-r', f'__node:={motion}'])
+    if isinstance(node, RotateRobot):
+        try:
+            _start_rotation(node)
+        except BaseException:
+            node.destroy_node()
+            raise
+    return node
+
+
+def _start_rotation(node):
+    p = node.params
+    if node.missing_answers():
+        missing = [name for name in ('angular_speed_deg', 'angle_deg', 'clockwise')
+                   if getattr(p, name) is None]
+        raise ParameterError(
+            'rotate_robot asks nothing in a fleet: give ' + ', '.join(missing) + ' as '
+            'parameters (-p, or a params file section for this robot)')
+    node.start(RotationRequest(p.angular_speed_deg, p.angle_deg, p.clockwise))
+
+
+class MotionFleet(Node):
+    """
+    The fleet: reads ``robots`` and ``motions``; ``build()`` makes the motions.
+
+    It has no ``done`` of its own, so runtime.run waits for the motions alone.  Its
+    ``shutdown_hook`` runs after theirs: it waits once for every robot's final stop to be
+    acknowledged (each motion's own wait, one after another, would cost 0.2 s per robot) and
+    says how each motion ended.
+    """
+
+    def __init__(self, **kwargs):
+        super().__init__('motion_fleet', **kwargs)
+        self.params = declare(self, PARAMETERS)
+        self.plan = fleet_plan(self.params.robots, self.params.motions, self.get_namespace())
+        self.motions = []
+
+    def build(self):
+        """Build every robot's motion in this node's context; return them."""
+        self.motions = build_fleet(self.context, self.params.robots, self.params.motions,
+                                   self.get_namespace())
+        for (robot, _, motion), node in zip(self.plan, self.motions):
+            node.stop_ack_timeout = 0.0
+            self.get_logger().info(
+                f'{robot}: {motion} as {node.get_fully_qualified_name()} (publishes '
+                f'{node.cmd_pub.topic_name}, reads {node.resolve_topic_name("odom")})')
+        return self.motions
+
+    def shutdown_hook(self):
+        """Wait for the motions' final stops to be acknowledged; say how each motion ended."""
+        deadline = time.monotonic() + MotionNode.stop_ack_timeout
+        for node in self.motions if self.context.ok() else ():
+            remaining = deadline - time.monotonic()
+            if remaining <= 0.0:
+                break
+            node.cmd_pub.wait_for_all_acked(Duration(seconds=remaining))
+        ended = []
+        for (robot, _, motion), node in zip(self.plan, self.motions):
+            state = f'exit code {node.exit_code}' if node.done else 'stopped before the end'
+            ended.append(f'{robot} {motion}: {state}')
+        if ended:
+            self.get_logger().info('Motions: ' + '; '.join(ended))
+
+
+def make_fleet():
+    """Build the fleet node and its motions; return them all, the fleet node last."""
+    fleet = MotionFleet()
+    try:
+        motions = fleet.build()
+    except BaseException:
+        fleet.destroy_node()
+        raise
+    # Last, so that its shutdown_hook runs after every motion has published its final stop.
+    return [*motions, fleet]
+
+
+def main(args=None):
+    """Run one motion per robot until all have finished; returns the worst exit code."""
+    return run(make_fleet, args)

@@ -1,0 +1,285 @@
+# Copyright 2026 motion_challenges contributors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+motion_fleet: one motion per robot in one process, each in its robot's namespace.
+
+In this process (build_fleet in a SimGraph) every robot ends at its analytic pose from its own
+start; as processes (the motion_fleet executable with the shipped params file against the
+simulator), likewise from each robot's odometry, and Ctrl-C leaves every robot stopped.
+Parameter mistakes are refused with exit code 2 and the parameter named.
+"""
+
+import math
+from pathlib import Path
+import signal
+
+from motion_challenges.circle_back_and_forth import CircleBackAndForth
+from motion_challenges.controllers import Pose
+from motion_challenges.motion_fleet import build_fleet
+from motion_challenges.motion_fleet import fleet_plan
+from motion_challenges.motion_fleet import motion_classes
+from motion_challenges.motion_fleet import MotionFleet
+from motion_challenges.odom_out_and_back import OdomOutAndBack
+from motion_challenges.prompts import RotationRequest
+from motion_challenges.rotate_robot import RotateRobot
+from motion_challenges.timed_out_and_back import expected_end
+from motion_challenges.timed_out_and_back import TimedOutAndBack
+import pytest
+import rclpy
+from rclpy.context import Context
+from sim_diffdrive.harness import angle_error
+from sim_diffdrive.harness import closing_line
+from sim_diffdrive.harness import is_moving
+from sim_diffdrive.harness import isolated_domain_id
+from sim_diffdrive.harness import pose_of
+from sim_diffdrive.harness import ros_params
+from sim_diffdrive.harness import stamp_s
+from sim_diffdrive.harness import stop
+from sim_diffdrive.parameters import ParameterError
+import yaml
+
+CONFIG = Path(__file__).resolve().parents[1] / 'config' / 'motion_fleet.yaml'
+EXACT = 1e-9  # [m] and [rad]: what lockstep gives, in one process or across several
+# Short motions: one 0.3 m leg and a half turn; a half turn on the spot; one 1 s arc and back.
+SHORT = {'goal_distance': 0.3, 'pause': 0.1, 'legs': 1, 'half_period': 1.0, 'cycles': 1,
+         'angular_speed_deg': 90.0, 'angle_deg': 180.0, 'clockwise': True}
+
+
+def start_of(i):
+    """Return robot i's start pose (x, y, yaw): each robot somewhere else, facing elsewhere."""
+    return (1.0 + i, 0.5 * i, 0.3 * (i + 1))
+
+
+def end_of(motion, start):
+    """Return where motion (with SHORT's parameters) leaves a robot that started at start."""
+    x, y, yaw = start
+    if motion in ('odom_out_and_back', 'timed_out_and_back'):
+        return expected_end(Pose(x, y, yaw), SHORT['goal_distance'], math.pi, SHORT['legs'])
+    if motion == 'rotate_robot':
+        return x, y, yaw - math.radians(SHORT['angle_deg'])
+    return start  # circle_back_and_forth: out along the arc and back
+
+
+def assert_at(odom, expected, output=''):
+    x, y, yaw = pose_of(odom)
+    assert math.hypot(x - expected[0], y - expected[1]) < EXACT, output
+    assert angle_error(yaw, expected[2]) < EXACT, output
+
+
+# -- the plan: names and motions -------------------------------------------------------------
+
+
+def test_motion_classes_are_the_four_motions():
+    assert motion_classes() == {
+        'rotate_robot': RotateRobot, 'circle_back_and_forth': CircleBackAndForth,
+        'timed_out_and_back': TimedOutAndBack, 'odom_out_and_back': OdomOutAndBack}
+
+
+def test_plan_puts_each_robot_in_its_namespace_with_one_motion_for_all_or_one_each():
+    assert fleet_plan(['robot1', 'site_a/robot2'], ['rotate_robot']) == [
+        ('robot1', '/robot1', 'rotate_robot'), ('site_a/robot2', '/site_a/robot2', 'rotate_robot')]
+    assert fleet_plan(['a', 'b'], ['rotate_robot', 'odom_out_and_back'], '/site') == [
+        ('a', '/site/a', 'rotate_robot'), ('b', '/site/b', 'odom_out_and_back')]
+
+
+@pytest.mark.parametrize('robots,motions,words', [
+    ([], ['rotate_robot'], ["'robots'", 'at least one']),
+    (['robot1', 'robot1'], ['rotate_robot'], ["'robots'", "'robot1' twice"]),
+    (['robot-1'], ['rotate_robot'], ["'robots'", "'robot-1'", 'not a valid ROS name']),
+    (['1robot'], ['rotate_robot'], ["'robots'", "'1robot'"]),
+    (['/robot1'], ['rotate_robot'], ["'robots'", 'relative', "'/robot1'"]),
+    (['a/'], ['rotate_robot'], ["'robots'", "'a/'"]),
+    (['a', 'b', 'c'], ['rotate_robot', 'odom_out_and_back'], ["'motions'", 'one per robot (3)']),
+    (['a'], [], ["'motions'", 'got 0']),
+    (['a', 'b'], ['rotate_robot', 'dance'], ["'motions'", "'dance'", 'odom_out_and_back']),
+])
+def test_plan_refuses_what_cannot_run_and_names_the_parameter(robots, motions, words):
+    with pytest.raises(ParameterError) as error:
+        fleet_plan(robots, motions)
+    for word in words:
+        assert word in str(error.value)
+
+
+# -- in this process: build_fleet against the simulator ---------------------------------------
+
+
+def initial_poses(robots):
+    """Return unicycle_sim's initial_poses: robot i at start_of(i)."""
+    return [v for i in range(len(robots)) for v in start_of(i)]
+
+
+def test_four_motions_in_one_executor_each_end_at_their_own_robots_goal(graph):
+    robots = ['robot1', 'robot2', 'robot3', 'site_a/robot4']
+    motions = ['odom_out_and_back', 'timed_out_and_back', 'rotate_robot',
+               'circle_back_and_forth']
+    graph.sim(robots=robots, initial_poses=initial_poses(robots))
+    nodes = build_fleet(graph.context, robots, motions, use_sim_time=True, **SHORT)
+    for node in nodes:
+        graph.add(node)
+    assert [node.get_fully_qualified_name() for node in nodes] == [
+        f'/{robot}/{motion}' for robot, motion in zip(robots, motions)]
+    assert [node.cmd_pub.topic_name for node in nodes] == [f'/{r}/cmd_vel' for r in robots]
+    graph.step_until(lambda: all(node.done for node in nodes), sim_timeout=30.0)
+    graph.step_for(0.2)
+    for i, (node, robot, motion) in enumerate(zip(nodes, robots, motions)):
+        assert node.exit_code == 0, motion
+        assert not is_moving(graph.odom(robot)), motion
+        assert_at(graph.odom(robot), end_of(motion, start_of(i)), motion)
+
+
+def test_rotate_robot_in_a_fleet_asks_nothing_and_refuses_without_its_answers(ros_context):
+    with pytest.raises(ParameterError) as error:
+        build_fleet(ros_context, ['robot1'], ['rotate_robot'], angle_deg=90.0)
+    assert "'robot1' (rotate_robot)" in str(error.value)
+    assert 'angular_speed_deg, clockwise' in str(error.value)
+    assert 'asks nothing' in str(error.value)
+
+
+def test_a_motions_own_bad_parameter_names_the_robot_and_the_parameter(ros_context):
+    with pytest.raises(ParameterError) as error:
+        build_fleet(ros_context, ['robot1', 'robot2'], ['timed_out_and_back'],
+                    goal_distance=-1.0)
+    assert "robot 'robot1' (timed_out_and_back): parameter 'goal_distance'" in str(error.value)
+
+
+def fleet_in(args):
+    """Build MotionFleet and its motions in a context with args as the process's arguments."""
+    context = Context()
+    rclpy.init(args=args, context=context, domain_id=isolated_domain_id())
+    fleet = MotionFleet(context=context)
+    return context, fleet, fleet.build()
+
+
+def test_the_shipped_params_file_reaches_every_node_and_one_robots_section_only_it():
+    context, fleet, nodes = fleet_in(['--ros-args', '--params-file', str(CONFIG),
+                                      '-p', 'pause:=0.25'])
+    try:
+        odom, timed, rotate = nodes
+        # Each section names only parameters that the nodes it speaks to declare.
+        sections = {'/motion_fleet': [fleet], '/**': [fleet, *nodes],
+                    '/**/odom_out_and_back': [odom], '/robot3/rotate_robot': [rotate]}
+        document = yaml.safe_load(CONFIG.read_text())
+        assert set(document) == set(sections)
+        for section, addressed in sections.items():
+            for name in document[section]['ros__parameters']:
+                assert all(node.has_parameter(name) for node in addressed), (section, name)
+        assert [n.get_fully_qualified_name() for n in nodes] == [
+            '/robot1/odom_out_and_back', '/robot2/timed_out_and_back', '/robot3/rotate_robot']
+        assert all(n.get_parameter('use_sim_time').value for n in nodes)  # /**
+        assert (odom.params.legs, timed.params.legs) == (1, 2)  # /**/odom_out_and_back
+        assert (odom.params.pause, timed.params.pause) == (0.25, 0.25)  # -p: every node
+        assert rotate.request == RotationRequest(90.0, 180.0, True)  # /robot3/rotate_robot
+    finally:
+        rclpy.try_shutdown(context=context)
+
+
+def test_a_namespace_given_to_the_process_comes_before_every_robots():
+    # A global -r __ns:= would put every node of the process in one namespace under one name.
+    context, fleet, nodes = fleet_in([
+        '--ros-args', '-r', '__ns:=/site', '-r', '__node:=renamed',
+        '-p', 'robots:=[robot1,robot2]', '-p', 'motions:=[timed_out_and_back]'])
+    try:
+        assert fleet.get_fully_qualified_name() == '/site/renamed'
+        assert [n.get_fully_qualified_name() for n in nodes] == [
+            '/site/robot1/timed_out_and_back', '/site/robot2/timed_out_and_back']
+        assert [n.cmd_pub.topic_name for n in nodes] == [
+            '/site/robot1/cmd_vel', '/site/robot2/cmd_vel']
+    finally:
+        rclpy.try_shutdown(context=context)
+
+
+# -- as processes: motion_fleet against one unicycle_sim for all robots ----------------------
+
+ROBOTS = ['robot1', 'robot2', 'robot3']
+
+
+def simulator(procs, graph, *params):
+    """Start one unicycle_sim for ROBOTS, robot i at start_of(i); return a watcher per robot."""
+    poses = ','.join(repr(float(v)) for v in initial_poses(ROBOTS))
+    # Lockstep sets the pace: the factor only bounds it (and the pace once the motions left).
+    procs('unicycle_sim', 'unicycle_sim', *ros_params(
+        'publish_clock:=true', 'real_time_factor:=50.0', f'robots:=[{",".join(ROBOTS)}]',
+        f'initial_poses:=[{poses}]', *params))
+    watchers = [graph.listener(robot) for robot in ROBOTS]
+    assert graph.spin_until(lambda: all(w.odom is not None for w in watchers), 20.0), \
+        'no odometry from the simulator(s)'
+    return watchers
+
+
+def wait_for_exit(graph, process, timeout=60.0):
+    assert graph.spin_until(lambda: process.poll() is not None, timeout), process.describe()
+    return process.returncode, process.output()
+
+
+def later_odometry(graph, watchers, seconds=0.2):
+    """Let every robot's odometry run on by seconds of simulated time; return the latest."""
+    stamps = [stamp_s(w.odom) for w in watchers]
+    assert graph.spin_until(lambda: all(stamp_s(w.odom) > s + seconds
+                                        for w, s in zip(watchers, stamps)), 10.0)
+    return [w.odom for w in watchers]
+
+
+@pytest.mark.parametrize('params,words', [
+    ((), ["parameter 'robots' must name at least one robot"]),
+    (('robots:=[robot1,robot2]', 'motions:=[rotate_robot,dance]'),
+     ["parameter 'motions' names 'dance'"]),
+    (('robots:=[robot1]', 'motions:=[rotate_robot]', 'angle_deg:=90.0'),
+     ["robot 'robot1' (rotate_robot)", 'angular_speed_deg, clockwise']),
+])
+def test_a_parameter_mistake_exits_2_and_names_the_parameter(graph, procs, params, words):
+    fleet = procs('motion_fleet', 'motion_fleet', *ros_params(*params))
+    code, output = wait_for_exit(graph, fleet, 20.0)
+    assert code == 2, output
+    for word in words:
+        assert word in output
+    assert 'Traceback' not in output
+
+
+def test_three_robots_from_the_shipped_params_file_each_end_exact(graph, procs):
+    watchers = simulator(procs, graph)
+    fleet = procs('motion_fleet', 'motion_fleet', '--ros-args', '--params-file', str(CONFIG),
+                  *ros_params('goal_distance:=0.3', 'pause:=0.1', 'legs:=1')[1:])
+    code, output = wait_for_exit(graph, fleet)
+    assert code == 0, output
+    motions = ['odom_out_and_back', 'timed_out_and_back', 'rotate_robot']
+    assert ('Motions: robot1 odom_out_and_back: exit code 0; robot2 timed_out_and_back: '
+            'exit code 0; robot3 rotate_robot: exit code 0') in output
+    ends = later_odometry(graph, watchers)
+    for i, (robot, motion, odom) in enumerate(zip(ROBOTS, motions, ends)):
+        lines = [line for line in output.splitlines() if f'[{robot}.{motion}]' in line]
+        closing = closing_line('\n'.join(lines))
+        assert 'Done in' in closing, output
+        assert 'error 0.000 mm' in closing or 'error 0.0000 deg' in closing, closing
+        assert not is_moving(odom), closing
+        assert_at(odom, end_of(motion, start_of(i)), closing)
+
+
+def test_ctrl_c_stops_every_robot(graph, procs):
+    # The simulator keeps each last command for ever: only the motions' final stops stop them.
+    watchers = simulator(procs, graph, 'cmd_vel_timeout:=0.0')
+    fleet = procs('motion_fleet', 'motion_fleet', *ros_params(
+        f'robots:=[{",".join(ROBOTS)}]', 'motions:=[circle_back_and_forth]', sim_time=True))
+    assert graph.spin_until(lambda: all(is_moving(w.odom) for w in watchers), 20.0), \
+        fleet.describe()
+    output = stop(fleet, signal.SIGINT)
+    assert fleet.returncode == 0, output
+    assert 'Interrupted by the user' in output
+    assert output.count('circle_back_and_forth: stopped before the end') == len(ROBOTS)
+    later_odometry(graph, watchers, 0.1)  # the stop has taken effect
+    rest = later_odometry(graph, watchers, 0.2)
+    for robot, watcher, odom in zip(ROBOTS, watchers, rest):
+        assert not is_moving(odom), robot
+        stopped = [o for o in watcher.odoms if stamp_s(o) >= stamp_s(odom) - 0.2]
+        assert len({pose_of(o) for o in stopped}) == 1, robot
