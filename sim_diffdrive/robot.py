@@ -80,12 +80,17 @@ class Robot:
         else:
             sub = sim.create_subscription(Twist, prefix + 'cmd_vel', self.on_twist, 10)
         self.cmd_topic = sub.topic_name
-        self.path = deque(maxlen=p.path_length)
+        self.path = DrivenPath(p.path_length)
         self.odom_msg = Odometry()
         self.odom_msg.pose.covariance = covariance(p.pose_covariance_diagonal)
         self.odom_msg.twist.covariance = covariance(p.twist_covariance_diagonal)
         for parameter in ('odom_frame_id', 'base_frame_id'):
             self.set_frame(parameter, getattr(p, parameter))
+        # What each publish fills, looked up once (the message is reused).
+        pose = self.odom_msg.pose.pose
+        twist = self.odom_msg.twist.twist
+        self._fill = (self.odom_msg.header, pose.position, pose.orientation, twist.linear,
+                      twist.angular)
 
     # -- state in the simulator's arrays ----------------------------------------------------
 
@@ -234,15 +239,14 @@ class Robot:
     def publish_odom(self, stamp, stamp_ns, x, y, qz, qw, linear, angular):
         """Fill the reused odometry message and publish it; return it."""
         msg = self.odom_msg
-        msg.header.stamp = stamp
-        position = msg.pose.pose.position
+        header, position, orientation, linear_velocity, angular_velocity = self._fill
+        header.stamp = stamp
         position.x = x
         position.y = y
-        q = msg.pose.pose.orientation
-        q.z = qz
-        q.w = qw
-        msg.twist.twist.linear.x = linear
-        msg.twist.twist.angular.z = angular
+        orientation.z = qz
+        orientation.w = qw
+        linear_velocity.x = linear
+        angular_velocity.z = angular
         self.odom_pub.publish(msg)
         if self.sim.taps:
             self.sim.taps.write(self.odom_pub.topic_name, msg, stamp_ns)
@@ -251,22 +255,64 @@ class Robot:
     def record_path(self, stamp_ns):
         """Add the pose just published to the driven path; publish the path if anyone looks."""
         odom = self.odom_msg
-        # Copied, not referenced: the odometry message is reused for the next publish.
-        pose = PoseStamped()
-        pose.header.frame_id = odom.header.frame_id
-        pose.header.stamp = odom.header.stamp
-        pose.pose.position.x = odom.pose.pose.position.x
-        pose.pose.position.y = odom.pose.pose.position.y
-        pose.pose.orientation.z = odom.pose.pose.orientation.z
-        pose.pose.orientation.w = odom.pose.pose.orientation.w
-        self.path.append(pose)
+        header, position, orientation, _, _ = self._fill
+        self.path.append((header.stamp, position.x, position.y, orientation.z, orientation.w))
         taps = self.sim.taps
         if self.path_pub.get_subscription_count() == 0 and not taps.wants_path:
-            # Converting a long path to a message is the costliest thing here: skip it unseen.
-            return
+            return  # converting a long path to a message is the costliest thing here
         path = Path()
         path.header = odom.header
-        path.poses = list(self.path)
+        path.poses = self.path.messages(header.frame_id)
         self.path_pub.publish(path)
         if taps:
             taps.write(self.path_pub.topic_name, path, stamp_ns)
+
+
+class DrivenPath:
+    """
+    The poses a robot drove through, newest last, at most ``maxlen`` of them.
+
+    Kept as plain tuples (stamp, x, y, qz, qw); PoseStamped messages are made only for a path
+    someone looks at, and each pose only once.
+    """
+
+    def __init__(self, maxlen):
+        self._poses = deque(maxlen=maxlen)
+        self._messages = deque(maxlen=maxlen)
+        self._unconverted = 0
+
+    def __iter__(self):
+        return iter(self._poses)
+
+    def __len__(self):
+        return len(self._poses)
+
+    def append(self, pose):
+        self._poses.append(pose)
+        self._unconverted += 1
+
+    def clear(self):
+        self._poses.clear()
+        self._messages.clear()
+        self._unconverted = 0
+
+    def resize(self, maxlen):
+        """Keep at most maxlen poses from now on (the newest ones)."""
+        self._poses = deque(self._poses, maxlen=maxlen)
+        self._messages = deque(self._messages, maxlen=maxlen)
+
+    def messages(self, frame_id):
+        """Return the path as a list of PoseStamped in frame_id."""
+        new = min(self._unconverted, len(self._poses))
+        for i in range(len(self._poses) - new, len(self._poses)):
+            stamp, x, y, qz, qw = self._poses[i]
+            pose = PoseStamped()
+            pose.header.frame_id = frame_id
+            pose.header.stamp = stamp
+            pose.pose.position.x = x
+            pose.pose.position.y = y
+            pose.pose.orientation.z = qz
+            pose.pose.orientation.w = qw
+            self._messages.append(pose)
+        self._unconverted = 0
+        return list(self._messages)

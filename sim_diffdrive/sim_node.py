@@ -22,7 +22,6 @@ step, ``real_time_factor`` times faster than the wall clock, and publishes it on
 for nodes that run with ``use_sim_time``.
 """
 
-from collections import deque
 import re
 import time
 
@@ -171,7 +170,8 @@ class UnicycleSim(Node):
         self.taps = open_taps(self)
         self.robots = [Robot(self, i, name, model)
                        for i, (name, model) in enumerate(zip(names, self.fleet.robots))]
-        self._tf = OdomTransform(self, len(names)) if p.publish_tf else None
+        self._tf = (OdomTransform(self, [robot.odom_msg for robot in self.robots])
+                    if p.publish_tf else None)
         self._path_every = max(1, round(p.rate_hz / p.path_rate_hz))
         self._odom_count = 0
         self._check_every = max(1, round(p.rate_hz))
@@ -317,6 +317,8 @@ class UnicycleSim(Node):
         elif name in ('odom_frame_id', 'base_frame_id'):
             for robot in robots:
                 robot.set_frame(name, value)
+            if self._tf is not None:
+                self._tf.set_frames()
         elif name == 'real_time_factor' and self.clock_timer is not None:
             self.step_budget_s = self._step_ns / _NS / value
             period_s = self.step_budget_s
@@ -327,7 +329,7 @@ class UnicycleSim(Node):
                 self.clock_timer.reset()
         elif name == 'path_length':
             for robot in robots:
-                robot.path = deque(robot.path, maxlen=value)  # keeps the newest
+                robot.path.resize(value)  # keeps the newest
         elif name == 'path_rate_hz':
             self._path_every = max(1, round(self.params.rate_hz / value))
         # The others are read where they are used: initial_* by ~/reset, lockstep_timeout by
@@ -351,13 +353,15 @@ class UnicycleSim(Node):
         stamp_ns = int(self.integrated_ns.max())
         stamp = Time(nanoseconds=stamp_ns).to_msg()
         half = 0.5 * fleet.yaw
-        odoms = [robot.publish_odom(stamp, stamp_ns, *values) for robot, *values in zip(
-            self.robots, fleet.x.tolist(), fleet.y.tolist(), np.sin(half).tolist(),
-            np.cos(half).tolist(), fleet.linear.tolist(), fleet.angular.tolist())]
+        qz, qw = np.sin(half), np.cos(half)  # quaternion_from_yaw, for every robot
+        for robot, *values in zip(self.robots, fleet.x.tolist(), fleet.y.tolist(), qz.tolist(),
+                                  qw.tolist(), fleet.linear.tolist(), fleet.angular.tolist()):
+            robot.publish_odom(stamp, stamp_ns, *values)
         if self._tf is not None:
-            tf = self._tf.publish(odoms)
+            pose = (stamp.sec, stamp.nanosec, fleet.x, fleet.y, qz, qw)
+            self._tf.publish(*pose)
             if self.taps:
-                self.taps.write(self._tf.publisher.topic_name, tf, stamp_ns)
+                self.taps.write(self._tf.publisher.topic_name, self._tf.message(*pose), stamp_ns)
         if self._odom_count % self._path_every == 0:
             for robot in self.robots:
                 robot.record_path(stamp_ns)

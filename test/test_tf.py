@@ -27,6 +27,8 @@ import math
 from ament_index_python.packages import get_package_share_directory
 from ament_index_python.resources import get_resource
 from geometry_msgs.msg import TransformStamped
+from nav_msgs.msg import Odometry
+import numpy as np
 import pytest
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -37,12 +39,44 @@ from sim_diffdrive.harness import ros_params
 from sim_diffdrive.harness import start
 from sim_diffdrive.harness import stop
 from sim_diffdrive.odom_tf import namespaced_frame
+from sim_diffdrive.odom_tf import OdomTransform
 from sim_diffdrive.odom_tf import resolve_frame
 from sim_diffdrive.odom_tf import TF_QOS
 from sim_diffdrive.odom_tf import TF_TOPIC
 from sim_diffdrive.parameters import Spec
 from sim_diffdrive.sim_node import UnicycleSim
 from tf2_msgs.msg import TFMessage
+
+
+@pytest.mark.parametrize('frames', [
+    [('odom', 'base_footprint')],
+    [('a/odom', 'a/base_footprint'), ('robot12/odom', 'robot12/base_footprint'),
+     ('o', 'b'), ('team_blue/robot7/odom', 'x')],  # every string length modulo 8
+])
+def test_the_tf_bytes_written_with_numpy_are_what_rclpy_serializes(ros_context, frames):
+    odoms = []
+    for frame, child in frames:
+        odom = Odometry()
+        odom.header.frame_id, odom.child_frame_id = frame, child
+        odoms.append(odom)
+    node = Node('tf_bytes', context=ros_context)
+    try:
+        tf = OdomTransform(node, odoms)
+        count = len(frames)
+        yaw = np.linspace(-3.1, 3.1, count)
+        values = (12345, 678901234, np.linspace(-1e3, 7.5, count), np.linspace(2.0, -0.1, count),
+                  np.sin(yaw / 2), np.cos(yaw / 2))
+        raw = tf._layout.serialize(*values)
+        # (rclpy leaves whatever was in memory in the padding, so compare all but that.)
+        expected = serialize_message(tf.message(*values))
+        assert len(raw) == len(expected)
+        decoded = deserialize_message(raw, TFMessage)
+        assert decoded == deserialize_message(expected, TFMessage)
+        assert [(t.header.frame_id, t.child_frame_id) for t in decoded.transforms] == frames
+        assert decoded.transforms[-1].transform.translation.x == values[2][-1]
+        assert decoded.transforms[0].header.stamp.nanosec == 678901234
+    finally:
+        node.destroy_node()
 
 
 class TfListener(Node):
