@@ -13,10 +13,12 @@
 # limitations under the License.
 
 """
-The ``unicycle_sim`` node: Twist in on ``cmd_vel``, Odometry out on ``odom``.
+The ``unicycle_sim`` node: Twist in on ``cmd_vel``, Odometry out on ``odom``; one robot or many.
 
 The pose is integrated exactly and piecewise: brought up to the moment each command arrives
-before the command takes effect, so accuracy does not depend on ``rate_hz``.  With
+before the command takes effect, so accuracy does not depend on ``rate_hz``.  With ``robots``
+each named robot has its own topics and frames under ``<name>/`` (robot.py), and every step
+moves all robots at once with numpy (fleet.py), bit-identical to one robot alone.  With
 ``publish_clock`` the node owns time: it steps a simulated clock by 1/``rate_hz`` seconds per
 step, ``real_time_factor`` times faster than the wall clock, and publishes it on ``/clock``
 for nodes that run with ``use_sim_time``.
