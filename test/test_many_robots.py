@@ -27,6 +27,7 @@ from motion_challenges.prompts import RotationRequest
 from motion_challenges.rotate_robot import RotateRobot
 from motion_challenges.timed_out_and_back import TimedOutAndBack
 import pytest
+from rclpy.experimental import EventsExecutor
 from rclpy.qos import QoSProfile
 from sim_diffdrive.harness import angle_error
 from sim_diffdrive.harness import pose_of
@@ -47,7 +48,15 @@ def flat(poses):
     return [value for pose in poses for value in pose]
 
 
-def test_eight_robots_running_different_motions_in_one_simulator_each_end_exact(graph):
+@pytest.fixture
+def fast_graph():
+    """A graph spun by the EventsExecutor: a fleet's many nodes step about twice as fast."""
+    with SimGraph(executor_class=EventsExecutor) as graph:
+        yield graph
+
+
+def test_eight_robots_running_different_motions_in_one_simulator_each_end_exact(fast_graph):
+    graph = fast_graph
     graph.sim(robots=ROBOTS, initial_poses=flat(POSES))
     short = {'goal_distance': 0.5, 'linear_speed': 1.0, 'angular_speed': 3.0, 'pause': 0.1}
     nodes = {
