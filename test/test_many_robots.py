@@ -50,7 +50,7 @@ def flat(poses):
 
 @pytest.fixture
 def fast_graph():
-    """A graph spun by the EventsExecutor: a fleet's many nodes step about twice as fast."""
+    """Yield a graph spun by the EventsExecutor: with many nodes it steps about 3x faster."""
     with SimGraph(executor_class=EventsExecutor) as graph:
         yield graph
 
