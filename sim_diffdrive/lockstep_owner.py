@@ -55,7 +55,7 @@ class LockstepOwner:
         sim.create_subscription(String, self._answer_topic, self._on_answer, ANSWER_QOS)
         # The simulator's own traffic (cmd_vel heard, odom sent) is counted like a
         # participant's; its answer holds the counter's live dicts, so only its step changes.
-        counter = MessageCounter(sim, clock_topic, self._on_news, timers=False)
+        counter = MessageCounter(sim, clock_topic, self._on_news, timers=False, fixed=True)
         self._own_answer = Answer(self._owner_id, sim.get_fully_qualified_name(), sim.now_ns(),
                                   counter.sent, counter.heard, False, counter.sent_stamp,
                                   counter.heard_stamp)
