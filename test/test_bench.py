@@ -152,5 +152,30 @@ def test_quick_run_writes_every_row(tmp_path):
     assert rows['cpu_idle']['idle_percent'] >= 0.0
     assert tuple(rows['scaling_one_process']['rtf']) == tuple(map(str, sizes.robots))
     assert tuple(rows['scaling_processes']['rtf']) == tuple(map(str, sizes.robots_processes))
+    # Many robots in one simulator (rows 13-17): every count measured, sane, motions exact.
+    fleet = rows['fleet_cpu']
+    for key in ('idle_cores', 'commands_cores'):
+        assert tuple(fleet[key]) == tuple(map(str, sizes.fleet_robots)), key
+        assert all(0.0 < cores < 2.0 for cores in fleet[key].values()), (key, fleet[key])
+    assert rows['fleet_real_time']['robots'] == sizes.fleet_robots[-1]
+    assert rows['fleet_real_time']['steps_per_s'] > 0.0
+    free = rows['fleet_rtf']
+    for key in ('idle_rtf', 'commands_rtf'):
+        assert tuple(free[key]) == tuple(map(str, sizes.fleet_free_robots)), key
+        assert all(factor > 0.0 for factor in free[key].values()), (key, free[key])
+    assert all(0.0 < commands for commands in free['commands_per_robot_step'].values())
+    per_message = rows['fleet_per_robot']['per_message_s']
+    assert 0.0 < per_message['no_subscriber_s'] < 1e-3
+    assert 0.0 < per_message['one_subscriber_s'] < 1e-3
+    assert math.isfinite(rows['fleet_per_robot']['ratio'])
+    motions = rows['fleet_motions']
+    for run in (motions['one_simulator'], motions['pairs']):
+        assert run['robots'] == sizes.fleet_motion_robots
+        assert run['failed'] == 0, run
+        assert run['rtf'] > 0.0 and run['wall_s'] > 0.0
+    # The closing lines print 3 decimals of mm and 4 of deg: exact prints zeros.
+    assert motions['one_simulator']['worst_mm'] == 0.0
+    assert motions['one_simulator']['worst_deg'] == 0.0
+    assert motions['one_simulator']['exit_code'] == 0
     # The table is printed too.
     assert 'this project' in result.stdout and 'reference' in result.stdout

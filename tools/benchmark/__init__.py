@@ -27,7 +27,11 @@ project has a target, whether it was met:
   (lockstep, SingleThreadedExecutor and EventsExecutor) and across processes (``unicycle_sim``
   and the motion executables over DDS), with a check that two runs give identical poses;
   cmd_vel -> odom latency; simulator CPU idle and under commands; N robots in one process and
-  in separate processes.
+  in separate processes;
+* many robots in one simulator (its ``robots`` parameter): CPU per simulated second and the
+  achievable real-time factor for 1 to 256 robots, idle and commanded, the cost per robot next
+  to rclpy's cost per Odometry message, and N motions against one simulator and one
+  ``motion_fleet`` next to N simulator + motion pairs.
 
 In-process rows run the real simulator node and the real motion nodes in one executor, stepped
 in lockstep (sim_diffdrive.harness), so their results are exact and independent of machine
@@ -48,6 +52,8 @@ Modules, from the bottom up:
 * ``processes``: rows 7-10, the executables as separate processes (real-time factor, latency,
   CPU);
 * ``scaling``: rows 11-12, N robots in one process and as 2N processes;
+* ``fleet``: rows 13-17, many robots in one simulator process, with ``fleet_load``, the
+  process that commands them (told what to do on its stdin);
 * ``cli``: the command line (``python tools/bench.py [--quick] [--json PATH] [--only GROUPS]
   [--domain-id N] [--rtf X]``).
 """

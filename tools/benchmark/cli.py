@@ -25,6 +25,7 @@ from benchmark.config import DEFAULT_JSON
 from benchmark.config import GROUPS
 from benchmark.config import ROW_KEYS
 from benchmark.config import Sizes
+from benchmark.fleet import rows_fleet
 from benchmark.processes import Children
 from benchmark.processes import row_rtf_processes
 from benchmark.processes import rows_sim_process
@@ -46,7 +47,8 @@ from rclpy.logging import LoggingSeverity
 from sim_diffdrive.harness import DOMAIN_VARIABLE
 from sim_diffdrive.harness import isolated_domain_id
 
-EXECUTABLES = ('unicycle_sim', 'rotate_robot', 'circle_back_and_forth', 'timed_out_and_back')
+EXECUTABLES = ('unicycle_sim', 'rotate_robot', 'circle_back_and_forth', 'timed_out_and_back',
+               'odom_out_and_back', 'motion_fleet')
 
 
 def measure(selected, sizes, children, domain_id, rtf, progress):
@@ -81,6 +83,11 @@ def measure(selected, sizes, children, domain_id, rtf, progress):
         progress(f'N robots: {sizes.robots} in one process, {sizes.robots_processes} as '
                  'processes')
         rows.update(rows_scaling(sizes, children, domain_id, rtf))
+    if 'fleet' in selected:
+        progress(f'many robots in one simulator: {sizes.fleet_robots}; '
+                 f'{sizes.fleet_motion_robots} robots with motions')
+        pairs = rows.get('scaling_processes', {}).get('data', {}).get('runs')
+        rows.update(rows_fleet(sizes, children, domain_id, rtf, pairs))
     return {key: rows[key] for key in ROW_KEYS if key in rows}
 
 

@@ -29,6 +29,9 @@ TARGET_RTF_IN_PROCESS = 25.0
 TARGET_RTF_PROCESSES = 10.0
 TARGET_LATENCY_P99_MS = 20.0 + 2.0  # one odometry period at 50 Hz, plus 2 ms
 TARGET_IDLE_CPU_PERCENT = 2.0
+# 64 robots at 50 Hz in real time within one core; a robot costs at most 2 Odometry publishes.
+TARGET_FLEET_CORES = 1.0
+TARGET_PER_ROBOT_RATIO = 2.0
 
 ROTATION = RotationRequest(60.0, 90.0, True)  # deg/s, deg, clockwise
 
@@ -39,12 +42,13 @@ SCALING_TIMEOUT_S = 20.0
 ROW_KEYS = (
     'rotate_timed', 'rotate_odom', 'out_and_back_closure', 'circle_closure',
     'integration_error', 'rtf_in_process', 'rtf_processes', 'latency', 'cpu_idle',
-    'cpu_commands', 'scaling_one_process', 'scaling_processes',
+    'cpu_commands', 'scaling_one_process', 'scaling_processes', 'fleet_cpu', 'fleet_real_time',
+    'fleet_rtf', 'fleet_per_robot', 'fleet_motions',
 )
 
 # The groups --only selects from, in the order they run.
 GROUPS = ('rotate', 'rtf', 'out_and_back', 'circle', 'integration', 'processes', 'sim',
-          'scaling')
+          'scaling', 'fleet')
 
 
 class Sizes:
@@ -74,3 +78,13 @@ class Sizes:
         self.process_scenarios = ('rotate',) if quick else ('rotate', 'circle', 'out_and_back')
         # Runs of each motion across processes; two show whether runs are identical.
         self.process_runs = 1 if quick else 2
+        # Many robots in one simulator: robot counts (in real time; with a free clock),
+        # wall seconds to settle and to measure each, Odometry publishes for rclpy's cost per
+        # message, robots running a motion.
+        self.fleet_robots = (1, 4) if quick else (1, 16, 64, 256)
+        self.fleet_free_robots = self.fleet_robots[-1:] if quick else self.fleet_robots
+        self.fleet_settle_s = 0.05 if quick else 0.5
+        self.fleet_window_s = 0.1 if quick else 3.0
+        self.fleet_messages = 500 if quick else 10000
+        # As many as row 12's largest run of pairs, which the fleet row then reuses.
+        self.fleet_motion_robots = self.robots_processes[-1]

@@ -25,6 +25,9 @@ BenchGraph with discovery on (the run's domain, this machine only).
 import math
 import os
 import random
+import signal
+import subprocess
+import sys
 import time
 
 from benchmark.config import TARGET_IDLE_CPU_PERCENT
@@ -41,6 +44,7 @@ from rclpy.clock import ClockType
 from sim_diffdrive.harness import is_moving
 from sim_diffdrive.harness import pose_of
 from sim_diffdrive.harness import Probe
+from sim_diffdrive.harness import Process
 from sim_diffdrive.harness import ros_params
 from sim_diffdrive.harness import stamp_s
 from sim_diffdrive.harness import start
@@ -70,6 +74,17 @@ class Children:
               for name, value in params.items()), namespace=namespace))
         self.running.append(process)
         return process
+
+    def start_python(self, code, stdin=subprocess.DEVNULL):
+        """Start this Python interpreter on a piece of code (a load, a listener, ...)."""
+        process = Process([sys.executable, '-c', code], stdin=stdin)
+        self.running.append(process)
+        return process
+
+    def interrupt(self, process):
+        """Send a child Ctrl-C without waiting for it to exit (stop() or stop_all() later)."""
+        if process in self.running and process.poll() is None:
+            process.send(signal.SIGINT)
 
     def stop(self, process):
         """Stop a child as Ctrl-C does (a motion then stops its robot); return its output."""

@@ -21,6 +21,7 @@ import time
 from benchmark.config import NS
 from benchmark.config import SCALING_TIMEOUT_S
 from benchmark.graph import BenchGraph
+from benchmark.processes import tail
 from benchmark.table import fmt_x
 from benchmark.table import row
 from motion_challenges.odom_out_and_back import OdomOutAndBack
@@ -82,26 +83,48 @@ def scaling_processes(children, domain_id, robots, motion, rtf):
                 raise RuntimeError(f'{robots} robots did not come up')
             # 2N Python processes on a small machine: a participant can be off the CPU for
             # seconds, which is no reason to go on without it.
+            started = time.monotonic()
             processes.append(children.start('unicycle_sim', namespace='/robot0',
                                             publish_clock=True, real_time_factor=rtf,
                                             lockstep_timeout=SCALING_TIMEOUT_S, stamped=True))
             session.spin_until(lambda: all(m.poll() is not None for m in motions),
                                SCALING_TIMEOUT_S + 4.0 * robots, poll=0.05)
+            # Wall seconds from the clock owner's start to the last motion's exit.
+            wall_s = (max(m.exited_at for m in motions) - started
+                      if all(m.poll() is not None for m in motions) else math.nan)
         finally:
             for process in processes:
                 children.stop(process)
-    factors, errors, failed = [], [], 0
-    for motion in motions:
-        line = closing_line(children.stop(motion))
-        done, error = DONE_LINE.search(line), ERROR_LINE.search(line)
-        if motion.returncode != 0 or not done or not error:
-            failed += 1
-            continue
-        sim_s, wall_s = float(done.group(1)), float(done.group(2))
-        factors.append(sim_s / wall_s if wall_s > 0 else math.inf)
-        errors.append(float(error.group(1)))
-    return {'rtf': min(factors, default=math.nan), 'worst_mm': max(errors, default=math.nan),
-            'failed': failed}
+    finished = [closing(closing_line(children.stop(motion))) if motion.returncode == 0 else None
+                for motion in motions]
+    result = summary(finished, wall_s)
+    result['failure_logs'] = [tail(children.stop(motion)) for motion, done
+                              in zip(motions, finished) if done is None]
+    return result
+
+
+def closing(line):
+    """Return (sim s, wall s, error mm, error deg) from a motion's closing line, or None."""
+    done, error = DONE_LINE.search(line), ERROR_LINE.search(line)
+    if not done or not error:
+        return None
+    return (float(done.group(1)), float(done.group(2)), float(error.group(1)),
+            float(error.group(2)))
+
+
+def summary(finished, wall_s):
+    """
+    Sum up the motions' closings (None: not finished) and the run's wall seconds.
+
+    rtf: the slowest motion's sim s / wall s; worst_mm, worst_deg: the largest closure error;
+    failed: how many did not finish.
+    """
+    done = [f for f in finished if f is not None]
+    return {'rtf': min((sim_s / wall if wall > 0 else math.inf for sim_s, wall, _, _ in done),
+                       default=math.nan),
+            'worst_mm': max((mm for _, _, mm, _ in done), default=math.nan),
+            'worst_deg': max((deg for _, _, _, deg in done), default=math.nan),
+            'failed': len(finished) - len(done), 'robots': len(finished), 'wall_s': wall_s}
 
 
 def rows_scaling(sizes, children, domain_id, rtf):
@@ -137,5 +160,6 @@ def rows_scaling(sizes, children, domain_id, rtf):
             'robot of wall time).',
             rtf={str(n): m['rtf'] for n, m in many.items()},
             worst_error_mm={str(n): m['worst_mm'] for n, m in many.items()},
-            not_done={str(n): m['failed'] for n, m in many.items()}),
+            not_done={str(n): m['failed'] for n, m in many.items()},
+            runs={str(n): m for n, m in many.items()}),
     }
