@@ -376,11 +376,21 @@ class Process:
             return self._final_output
         return self.log_path.read_text(errors='replace')
 
-    def kill(self):
-        """Kill the process unless it has exited; a temporary log is read and removed."""
+    def kill(self, grace=3.0):
+        """
+        End the process unless it has exited; a temporary log is read and removed.
+
+        SIGTERM first, so that it leaves DDS cleanly (a ROS node killed outright can leave
+        shared-memory transport state behind that other processes trip over); SIGKILL after
+        grace seconds.
+        """
         if self.popen.poll() is None:
-            self.popen.kill()
-            self.popen.wait()
+            self.popen.terminate()
+            try:
+                self.popen.wait(grace)
+            except subprocess.TimeoutExpired:
+                self.popen.kill()
+                self.popen.wait()
         self.poll()
         if self.popen.stdin:
             self.popen.stdin.close()
