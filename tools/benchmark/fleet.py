@@ -441,7 +441,7 @@ def fleet_rows(sizes, rtf, per_message, real_time, free, one, many, reused):
             idle_cores=idle, commands_cores=busy, commanded_steps_per_s=steps_s,
             windows={str(n): r for n, r in real_time.items()}),
         'fleet_real_time': row(
-            f'{target_n} robots at 50 Hz in real time, each commanded every step: CPU',
+            f'{target_n} robots at 50 Hz in real time, each commanded at 50 Hz: CPU',
             f'{busy[target_n]:.2f} of a core ({steps_s[target_n]:.1f} steps/s)',
             f'idle: {idle[target_n]:.2f}', f'<= {TARGET_FLEET_CORES:g} core',
             met(busy[target_n] <= TARGET_FLEET_CORES and steps_s[target_n] >= 0.95 * RATE_HZ),
