@@ -132,7 +132,11 @@ class LockstepOwner:
     def _on_news(self):
         """Something the step may wait for has arrived (an answer, a command): look again."""
         self._waiting = None
-        self.try_step()
+        if len(self.ledger.members) > 1:
+            self.try_step()
+        # Without participants the clock timer alone paces the steps: stepping on every
+        # command too ran catch-up bursts from inside the command callbacks, and a simulator
+        # stepping as fast as it could then lost commands (its cmd_vel queues overflowed).
 
     def _publish_roster(self, waiting=()):
         """Tell the participants who is counted when that changed; repeat it while waiting."""

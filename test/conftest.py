@@ -25,6 +25,7 @@ import os
 import pytest
 import rclpy
 from rclpy.context import Context
+from rclpy.experimental import EventsExecutor
 from sim_diffdrive import harness
 from sim_diffdrive.harness import DOMAIN_VARIABLE
 from sim_diffdrive.harness import isolated_domain_id
@@ -58,7 +59,7 @@ def ros_context():
 
 @pytest.fixture
 def graph(ros_context):
-    g = SimGraph(ros_context)
+    g = SimGraph(ros_context, executor_class=EventsExecutor)
     try:
         yield g
     finally:
