@@ -28,6 +28,7 @@ from motion_challenges.rotate_robot import RotateRobot
 from motion_challenges.timed_out_and_back import TimedOutAndBack
 import pytest
 from rclpy.experimental import EventsExecutor
+from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile
 from sim_diffdrive.harness import angle_error
 from sim_diffdrive.harness import pose_of
@@ -205,3 +206,22 @@ def test_bad_robots_are_refused_by_name(ros_context, params, words):
     with pytest.raises(ParameterError) as error:
         UnicycleSim(context=ros_context, parameter_overrides=_overrides(params))
     assert words in str(error.value)
+
+
+def test_a_live_cmd_vel_timeout_counts_for_every_robot_from_its_own_last_command(graph):
+    sim = graph.sim(robots=['early', 'late'], cmd_vel_timeout=0.5)
+    drivers = {name: graph.probe(f'{name}_driver', namespace=name) for name in ('early', 'late')}
+    graph.step()
+    drivers['early'].send(1.0, 0.0)  # at 0.02 s
+    graph.step_for(0.2)
+    drivers['late'].send(1.0, 0.0)  # at 0.22 s
+    graph.step()
+    assert sim.set_parameters([Parameter('cmd_vel_timeout', value=1.0)])[0].successful
+    graph.step_for(2.0)
+    # Each stopped 1.0 s after its own last command: 1.0 m driven, whatever the other did.
+    for name in ('early', 'late'):
+        assert graph.pose(name) == pytest.approx((1.0, 0.0, 0.0), abs=1e-12), name
+    stops = {name: next(o for o in graph.listener(name).odoms if o.twist.twist.linear.x == 0.0
+                        and pose_of(o)[0] > 0.5).header.stamp.nanosec
+             for name in ('early', 'late')}
+    assert stops == {'early': 20_000_000, 'late': 220_000_000}  # at 1.02 s and 1.22 s
