@@ -26,8 +26,6 @@ read from /proc, is the simulator's alone; this process only counts odometry.
 
 import math
 import os
-from pathlib import Path
-import subprocess
 import time
 
 from benchmark.config import NS
@@ -35,7 +33,7 @@ from benchmark.config import SCALING_TIMEOUT_S
 from benchmark.config import TARGET_FLEET_CORES
 from benchmark.config import TARGET_PER_ROBOT_RATIO
 from benchmark.fleet_load import LISTEN_TOPIC
-from benchmark.fleet_load import load_code
+from benchmark.fleet_load import LoadProcess
 from benchmark.fleet_load import RATE_HZ
 from benchmark.fleet_load import robot_name
 from benchmark.graph import BenchGraph
@@ -56,9 +54,10 @@ from rclpy.parameter_client import AsyncParameterClient
 from sim_diffdrive.robot import covariance
 from sim_diffdrive.sim_node import PARAMETERS as SIM_PARAMETERS
 
-TOOLS = Path(__file__).resolve().parent.parent
 # The simulator's real_time_factor for the achievable factor: far above what it reaches.
 FREE_CLOCK_RTF = 10000.0
+# Its real_time_factor until measured: one step per 20 s of wall time.
+PAUSED_RTF = 0.001
 
 
 def cpu_ns(pid):
@@ -88,49 +87,6 @@ def names(robots):
 
 def yaml_list(values):
     return '[' + ', '.join(str(v) for v in values) + ']'
-
-
-class LoadProcess:
-    """The load process (fleet_load.py): switch(mode, robots) and wait for its ack."""
-
-    def __init__(self, children):
-        self.children = children
-        self.process = children.start_python(load_code(TOOLS), stdin=subprocess.PIPE)
-        self._seq = 0
-
-    def switch(self, mode, robots=0, namespace='/', timeout=30.0):
-        """
-        Switch the load (mode 'status': only ask); wait for its answer and return it.
-
-        The answer: {'ticks': command rounds sent so far, 'heard': odometry heard so far,
-        'joined': whether it takes part in a lockstep}.
-        """
-        self._seq += 1
-        try:
-            self.process.write(f'{self._seq} {mode} {robots} {namespace}\n')
-        except BrokenPipeError:
-            raise RuntimeError(f'the load process has ended:\n'
-                               f'{tail(self.children.stop(self.process))}') from None
-        ack = f'ack {self._seq} '
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline and self.process.poll() is None:
-            for line in reversed(self.process.output().splitlines()):
-                if line.startswith(ack):
-                    fields = line.split()
-                    return {'ticks': int(fields[3]), 'heard': int(fields[5]),
-                            'joined': fields[7] == '1'}
-            time.sleep(0.005)
-        raise RuntimeError(f'the load did not switch to {mode} {robots}:\n'
-                           f'{tail(self.children.stop(self.process))}')
-
-    def close(self):
-        if self.process.poll() is None:
-            self.process.close_input()  # it exits at the end of its input
-            try:
-                self.process.wait(3.0)
-            except subprocess.TimeoutExpired:
-                pass
-        self.children.stop(self.process)
 
 
 class Counter(Node):
@@ -187,30 +143,50 @@ def window(session, pid, counter, seconds, min_steps=5):
             'steps': counter.count - steps, 'sim_s': (counter.stamp_ns - stamp) / NS}
 
 
-def measure_sim(session, counter, children, load, robots, sizes, free_clock, exiting):
+def start_sim(children, robots, free_clock):
     """
-    Start a unicycle_sim with `robots` robots; measure it idle, then commanded; stop it.
+    Start a unicycle_sim with `robots` robots in a namespace of its own; return (process, ns).
 
-    free_clock false: on wall time, the load sending a Twist to every robot at 50 Hz (its
-    own timer).  True: owning the clock at FREE_CLOCK_RTF (publish_clock, lockstep): idle with
-    no participant, so it steps as fast as it can; commanded, the load takes part in its
-    lockstep and sends every robot a Twist at every step, applied before the next.
-    Returns {'idle': window, 'commands': window}.  The simulator is interrupted, not waited
-    for, and left in `exiting` (a list) for the next call to stop.
+    free_clock false: on wall time.  True: owning /clock (lockstep), held at PAUSED_RTF (a step
+    every 20 s wall) until measure_sim sets its real_time_factor, so that it costs nothing
+    while it waits.
     """
     mode = 'lockstep' if free_clock else 'wall'
     namespace = f'/fleet_{mode}_{robots}'
     params = {'robots': yaml_list(names(robots)), 'rate_hz': RATE_HZ}
     if free_clock:
-        params.update(publish_clock=True, real_time_factor=FREE_CLOCK_RTF)
-        factor = RealTimeFactor(counter, namespace + '/unicycle_sim', session)
-    sim = children.start('unicycle_sim', namespace=namespace, **params)
+        params.update(publish_clock=True, real_time_factor=PAUSED_RTF)
+    return children.start('unicycle_sim', namespace=namespace, **params), namespace
+
+
+def wait_up(session, probe, children, sims):
+    """Wait until every started simulator, (process, namespace), has its odometry publisher."""
+    if not session.spin_until(
+            lambda: all(probe.count_publishers(f'{ns}/{robot_name(0)}/odom') >= 1
+                        for _, ns in sims) or any(p.poll() is not None for p, _ in sims),
+            30.0, poll=0.01) or any(p.poll() is not None for p, _ in sims):
+        output = '\n'.join(tail(children.stop(p)) for p, _ in sims)
+        raise RuntimeError(f'unicycle_sim did not come up:\n{output}')
+
+
+def measure_sim(session, counter, children, load, robots, sim, sizes, free_clock):
+    """
+    Measure a running unicycle_sim (start_sim's (process, ns)) idle, then commanded; stop it.
+
+    free_clock false: on wall time, the load sending a Twist to every robot at 50 Hz (its
+    own timer).  True: owning the clock, set to FREE_CLOCK_RTF (publish_clock, lockstep): idle
+    with no participant, so it steps as fast as it can; commanded, the load takes part in its
+    lockstep and sends every robot a Twist at every step, applied before the next.
+    Returns {'idle': window, 'commands': window}.
+    """
+    sim, namespace = sim
+    mode = 'lockstep' if free_clock else 'wall'
     counter.watch(robots, namespace)
-    # The previous simulator, interrupted, exits while this one starts.
-    while exiting:
-        children.stop(exiting.pop())
     settle_s, window_s = sizes.fleet_settle_s, sizes.fleet_window_s
     try:
+        if free_clock:
+            factor = RealTimeFactor(counter, namespace + '/unicycle_sim', session)
+            factor.change(FREE_CLOCK_RTF)
         if not session.spin_until(lambda: counter.count > 2, 30.0, poll=0.005):
             raise RuntimeError(f'no odometry from unicycle_sim:\n{tail(children.stop(sim))}')
         session.spin_for(settle_s)
@@ -231,12 +207,8 @@ def measure_sim(session, counter, children, load, robots, sizes, free_clock, exi
         ticks = load.switch('status')['ticks']
         commands = window(session, sim.pid, counter, window_s)
         commands['commands_per_robot'] = load.switch('off')['ticks'] - ticks
-    except BaseException:
+    finally:
         children.stop(sim)
-        raise
-    # Ctrl-C, not waiting for the exit: the next simulator starts meanwhile.
-    children.interrupt(sim)
-    exiting.append(sim)
     return {'idle': idle, 'commands': commands}
 
 
@@ -248,6 +220,8 @@ class RealTimeFactor:
         self.session = session
 
     def change(self, value):
+        if not self.session.spin_until(self.client.services_are_ready, 30.0):
+            raise RuntimeError('the parameter services of unicycle_sim did not come up')
         future = self.client.set_parameters([Parameter('real_time_factor', value=value)])
         if not self.session.spin_until(future.done, 10.0) or not all(
                 result.successful for result in future.result().results):
@@ -344,26 +318,33 @@ def rows_fleet(sizes, children, domain_id, rtf, pairs=None):
 
     Row 12 runs the same motion as pairs, so a full run measures 16 pairs once.
     """
-    load = LoadProcess(children)
-    try:
-        with BenchGraph(domain_id=domain_id, offline=False) as session:
-            # Before the simulators, with nobody listening; then with the load as a reader.
-            publisher = session.add(OdometryPublisher(session.context))
-            alone = publisher.cost(sizes.fleet_messages)
-            counter = session.add(Counter(session.context))
-            exiting = []
-            real_time = {n: measure_sim(session, counter, children, load, n, sizes, False,
-                                        exiting) for n in sizes.fleet_robots}
-            free = {n: measure_sim(session, counter, children, load, n, sizes, True, exiting)
-                    for n in sizes.fleet_free_robots}
-            while exiting:
-                children.stop(exiting.pop())
+    with BenchGraph(domain_id=domain_id, offline=False) as session:
+        # Before any other process, so no discovery traffic: rclpy's cost with nobody listening.
+        publisher = session.add(OdometryPublisher(session.context))
+        alone = publisher.cost(sizes.fleet_messages)
+        counter = session.add(Counter(session.context))
+        # The simulators on wall time start at once, with the load: their discoveries overlap
+        # (one now and then waits for Fast DDS's next announcement, 3 s; not one after another).
+        # Measured largest first, each stopped once measured; the others idle meanwhile.
+        load = LoadProcess(children)
+        try:
+            real_time = {n: start_sim(children, n, False) for n in sizes.fleet_robots}
+            wait_up(session, counter, children, list(real_time.values()))
+            for n in sorted(real_time, reverse=True):
+                real_time[n] = measure_sim(session, counter, children, load, n, real_time[n],
+                                           sizes, False)
+            # One clock owner at a time: each starts once the last has stopped.
+            free = {}
+            for n in sizes.fleet_free_robots:
+                sim = start_sim(children, n, True)
+                wait_up(session, counter, children, [sim])
+                free[n] = measure_sim(session, counter, children, load, n, sim, sizes, True)
             per_message = rclpy_per_message(session, publisher, load, sizes.fleet_messages,
                                             alone)
-            one = fleet_motions(children, session, counter, sizes.fleet_motion_robots,
-                                sizes.scaling_motion, rtf)
-    finally:
-        load.close()
+        finally:
+            load.close()
+        one = fleet_motions(children, session, counter, sizes.fleet_motion_robots,
+                            sizes.scaling_motion, rtf)
     n = sizes.fleet_motion_robots
     reused = bool(pairs and str(n) in pairs)
     many = pairs[str(n)] if reused else scaling_processes(
@@ -437,7 +418,9 @@ def fleet_rows(sizes, rtf, per_message, real_time, free, one, many, reused):
             'of r0 and of the last robot only). Commanded: a load process sends every robot a '
             'Twist at 50 Hz on its own timer (alternating values, so each is integrated '
             'piecewise); steps per wall second then: '
-            + by_n(steps_s, lambda v: f'{v:.1f}') + ' (50: kept up).',
+            + by_n(steps_s, lambda v: f'{v:.1f}') + ' (50: kept up). The simulators of every N '
+            'start at once (namespaces of their own) and are measured largest first, each '
+            'stopped once measured: the smaller ones idle meanwhile.',
             idle_cores=idle, commands_cores=busy, commanded_steps_per_s=steps_s,
             windows={str(n): r for n, r in real_time.items()}),
         'fleet_real_time': row(
@@ -454,9 +437,10 @@ def fleet_rows(sizes, rtf, per_message, real_time, free, one, many, reused):
             f'{by_n(rtf_busy, fmt_x)}',
             'CPU-bound: 1 / (its idle CPU per simulated s) '
             + by_n({n: 1.0 / v for n, v in free_cores.items()}, fmt_x), '-', '-',
-            'unicycle_sim with robots r0..r(N-1), rate_hz 50, publish_clock at '
-            f'real_time_factor {FREE_CLOCK_RTF:g} (no limit in practice), lockstep as by '
-            'default; simulated s (odometry stamps of r0) per wall s over '
+            'unicycle_sim with robots r0..r(N-1), rate_hz 50, publish_clock (started held at '
+            f'real_time_factor {PAUSED_RTF:g}, one at a time, then set through its parameter '
+            f'service) at real_time_factor {FREE_CLOCK_RTF:g} (no limit in practice), lockstep '
+            'as by default; simulated s (odometry stamps of r0) per wall s over '
             f'{window_s:g} s. Idle: no participant, so it steps as fast as it can. Commanded: '
             'the load process takes part in the lockstep (as a motion does) and sends every '
             'robot a Twist at every step, which the simulator applies before the next step '
@@ -479,9 +463,9 @@ def fleet_rows(sizes, rtf, per_message, real_time, free, one, many, reused):
             '(the first of these rows). Per message: this process publishes the '
             f"simulator's Odometry (frames, covariances) {per_message['published']} times, "
             "CPU of this process per publish; first with no subscriber (as the simulator's "
-            f"robots' odometry but r0's), then with the load process subscribed "
-            f"({per_message['heard']} heard; keep last 10). Idle ratio {ratio:.2f}x (to one "
-            f'subscriber: {ratio_reader:.2f}x); target on no subscriber.',
+            f"robots' odometry but r0's; before any other process starts), then with the load "
+            f"process subscribed ({per_message['heard']} heard; keep last 10). Idle ratio "
+            f'{ratio:.2f}x (to one subscriber: {ratio_reader:.2f}x); target on no subscriber.',
             per_robot_s=per_robot, per_message_s=per_message, ratio=ratio,
             ratio_one_subscriber=ratio_reader),
         'fleet_motions': row(

@@ -30,12 +30,16 @@ taking part in a lockstep).  ``<seq> status`` only prints that line.  Modes:
 
 The commands alternate between two values, so the simulator integrates piecewise at each one.
 The load exits at the end of its input (the benchmark closed it, or died) or on SIGINT/SIGTERM.
+LoadProcess is the benchmark's side: it starts the load and switches it.
 """
 
+from pathlib import Path
 import queue
 import signal
+import subprocess
 import sys
 import threading
+import time
 
 from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
@@ -50,6 +54,7 @@ from rclpy.signals import SignalHandlerOptions
 from sim_diffdrive.participant import take_part
 
 LISTEN_TOPIC = 'bench_odom'
+TOOLS_DIR = Path(__file__).resolve().parent.parent
 RATE_HZ = 50.0
 
 
@@ -62,6 +67,51 @@ def load_code(tools_dir):
     """Return Python code that runs this module's load (for a process with stdin a pipe)."""
     return (f'import sys; sys.path.insert(0, {str(tools_dir)!r}); '
             'from benchmark.fleet_load import main; sys.exit(main())')
+
+
+class LoadProcess:
+    """The load process (fleet_load.py): switch(mode, robots) and wait for its ack."""
+
+    def __init__(self, children):
+        self.children = children
+        self.process = children.start_python(load_code(TOOLS_DIR), stdin=subprocess.PIPE)
+        self._seq = 0
+
+    def switch(self, mode, robots=0, namespace='/', timeout=30.0):
+        """
+        Switch the load (mode 'status': only ask); wait for its answer and return it.
+
+        The answer: {'ticks': command rounds sent so far, 'heard': odometry heard so far,
+        'joined': whether it takes part in a lockstep}.
+        """
+        self._seq += 1
+        try:
+            self.process.write(f'{self._seq} {mode} {robots} {namespace}\n')
+        except BrokenPipeError:
+            from benchmark.processes import tail  # not in the load process
+            raise RuntimeError(f'the load process has ended:\n'
+                               f'{tail(self.children.stop(self.process))}') from None
+        ack = f'ack {self._seq} '
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline and self.process.poll() is None:
+            for line in reversed(self.process.output().splitlines()):
+                if line.startswith(ack):
+                    fields = line.split()
+                    return {'ticks': int(fields[3]), 'heard': int(fields[5]),
+                            'joined': fields[7] == '1'}
+            time.sleep(0.005)
+        from benchmark.processes import tail
+        raise RuntimeError(f'the load did not switch to {mode} {robots}:\n'
+                           f'{tail(self.children.stop(self.process))}')
+
+    def close(self):
+        if self.process.poll() is None:
+            self.process.close_input()  # it exits at the end of its input
+            try:
+                self.process.wait(3.0)
+            except subprocess.TimeoutExpired:
+                pass
+        self.children.stop(self.process)
 
 
 class Commander(Node):
