@@ -38,11 +38,6 @@ if os.environ.get('PYTEST_XDIST_WORKER', 'gw0') != 'gw0':
     DOMAIN_ID = isolated_domain_id()
 # Subprocesses write each log line at once, so a test reads their output as it happens.
 os.environ.setdefault('RCUTILS_LOGGING_BUFFERED_STREAM', '0')
-# Fast DDS over UDP on localhost only, not its shared-memory transport: tests kill processes
-# on purpose (SIGKILL mid-motion), and a process killed while it held a shared-memory port
-# could crash this one later, when its last node was destroyed (a segfault in
-# SharedMemChannelResource::release seen about once in ten runs of the fleet tests).
-os.environ.setdefault('FASTDDS_BUILTIN_TRANSPORTS', 'UDPv4')
 
 
 @pytest.fixture
