@@ -135,6 +135,9 @@ def assert_at(odom, expected, output):
     assert angle_error(yaw, goal_yaw) < 1e-9, output
 
 
+# The default lockstep_timeout: with two busy loops and a second pytest worker on 2 cores, a
+# motion was once silent for longer than the fixture's 0.5 s, was dropped, and failed.
+@pytest.mark.parametrize('simulator', [2.0], indirect=True)
 def test_motions_end_exact_and_bit_identical_on_a_busy_machine(graph, busy_machine, simulator):
     _, probe, reset = simulator
     ends = {}
