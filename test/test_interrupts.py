@@ -115,12 +115,15 @@ def test_killed_controller_is_stopped_by_the_simulator_timeout(graph, procs):
         20.0), controller.describe() + timed.describe()
 
     controller.send(signal.SIGKILL)
-    killed = time.monotonic()
-    graph.spin_for(timeout_s + 0.7)
+    # Judged by the odometry's stamps, not by when it reaches this process: on a loaded machine
+    # delivery (or this process) may lag behind by a good part of a second.
+    assert graph.spin_until(lambda: twist(watcher.odom) == (0.0, 0.0), 10.0), timed.describe()
     assert controller.poll() == -signal.SIGKILL
 
     last_command_s = watcher.commands[-1][1]
-    assert twist(watcher.odom) == (0.0, 0.0), timed.describe()
+    settled_s = last_command_s + timeout_s + 0.2
+    assert graph.spin_until(lambda: stamp_s(watcher.odom) > settled_s
+                            and stamp_s(keeper.odom) > settled_s, 10.0)
     last_moving = [o for o in watcher.odoms if moving(o)][-1]
     first_stopped = next(o for o in watcher.odoms
                          if stamp_s(o) > stamp_s(last_moving))
@@ -128,11 +131,11 @@ def test_killed_controller_is_stopped_by_the_simulator_timeout(graph, procs):
     assert late_s <= timeout_s + period_s, (
         f'odometry shows the robot moving {late_s:.3f} s after the last cmd_vel')
     assert stamp_s(first_stopped) - last_command_s <= timeout_s + 2 * period_s + 0.05
-    assert not any(moving(o) for o in watcher.after(killed + timeout_s + 0.2))
+    assert not any(moving(o) for o in watcher.odoms if stamp_s(o) > settled_s)
     assert f'No cmd_vel for {timeout_s:g} s: stopping the robot' in timed.output()
 
     # With the timeout off, the last command is kept, as documented.
-    kept = keeper.after(killed + timeout_s + 0.2)
+    kept = [o for o in keeper.odoms if stamp_s(o) > settled_s]
     assert kept and all(twist(o) == (0.5, 0.5) for o in kept)
     assert 'No cmd_vel' not in keeping.output()
 
