@@ -171,7 +171,7 @@ def test_quick_run_writes_every_row(tmp_path):
     motions = rows['fleet_motions']
     for run in (motions['one_simulator'], motions['pairs']):
         assert run['robots'] == sizes.fleet_motion_robots
-        assert run['failed'] == 0, run
+        assert run['failed'] == 0, json.dumps(run, indent=1)
         assert run['rtf'] > 0.0 and run['wall_s'] > 0.0
     # The closing lines print 3 decimals of mm and 4 of deg: exact prints zeros.
     assert motions['one_simulator']['worst_mm'] == 0.0

@@ -309,6 +309,8 @@ def fleet_motions(children, session, probe, robots, motion, rtf):
     finished += [None] * (robots - len(finished))
     result = summary(finished, wall_s)
     result['exit_code'] = fleet.returncode
+    if result['failed']:
+        result['log'] = tail(output, 30)  # what the motions said, for whoever reads the JSON
     return result
 
 
