@@ -122,15 +122,14 @@ class Fleet:
         through UnicycleModel.advance; the others in one numpy step.  Equal, robot by robot, to
         ``robots[i].advance(dt)``.
         """
-        n = len(self.robots)
-        index = np.arange(n) if which is None else np.asarray(which, dtype=np.intp)
+        index = np.arange(len(self.robots)) if which is None else np.asarray(which, dtype=np.intp)
         dt = np.broadcast_to(np.asarray(dt, dtype=float), index.shape)
         keep = dt > 0.0
         ramping = self.ramping()[index]
         for i, step in zip(index[ramping & keep].tolist(), dt[ramping & keep].tolist()):
             self.robots[i].advance(step)
         steady = keep & ~ramping
-        if steady.all() and index.size == n and which is None:
+        if which is None and steady.all():
             self.x, self.y, self.yaw = integrate_all(
                 self.x, self.y, self.yaw, self.linear, self.angular, dt)
             return

@@ -202,9 +202,9 @@ def test_one_tf_message_carries_every_robots_transform(graph):
     ({'robots': [1, 2]}, "parameter 'robots' must be a list of strings"),
 ])
 def test_bad_robots_are_refused_by_name(ros_context, params, words):
-    from sim_diffdrive.harness import _overrides
+    overrides = [Parameter(name, value=value) for name, value in params.items()]
     with pytest.raises(ParameterError) as error:
-        UnicycleSim(context=ros_context, parameter_overrides=_overrides(params))
+        UnicycleSim(context=ros_context, parameter_overrides=overrides)
     assert words in str(error.value)
 
 
