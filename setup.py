@@ -23,6 +23,7 @@ setup(
     name=package_name,
     version='0.1.0',
     packages=find_packages(exclude=['test']),
+    package_data={'sim_diffdrive': ['fastdds_profile.xml']},
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml', 'README.md']),
@@ -34,7 +35,8 @@ setup(
     # the Makefile installs), never from here, so colcon builds this on a ROS machine as is.
     install_requires=['setuptools'],
     extras_require={'plot': ['matplotlib'], 'test': ['pytest']},
-    zip_safe=True,
+    # Fast DDS reads fastdds_profile.xml from a path on disk.
+    zip_safe=False,
     maintainer='motion_challenges maintainers',
     maintainer_email='maintainers@motion-challenges.dev',
     description='Classic ROS 1 motion tutorials on ROS 2 Jazzy with an exact unicycle simulator.',

@@ -140,9 +140,13 @@ class Roster:
 
 class _Member:
 
-    def __init__(self, answer, joined_ns):
+    def __init__(self, answer, joined_ns, wall_s):
         self.answer = answer
         self.joined_ns = joined_ns
+        # When anything was last heard from it [s, wall]: only a silent member is dropped.
+        self.heard_wall = wall_s
+        # Per stamped topic: a stamp the owner stopped waiting for (see forgive).
+        self.stamp_floor = {}
         # Joining until it has caught up with every stamped topic it hears; then synced.
         self.synced = False
         # What this member had sent before it joined is nobody's debt.
@@ -157,26 +161,33 @@ class StepLedger:
     The clock owner's view of the members and of what they still owe.
 
     ``receive()`` every answer (the owner's own included), ``waiting_for(now_ns)`` to know
-    whether the step at now_ns is settled, ``next_step()`` when the clock moves on.
+    whether the step at now_ns is settled, ``next_step()`` when the clock moves on.  The
+    owner's own id is never dropped, and a participant that said it leaves is gone for good.
     """
 
-    def __init__(self):
+    def __init__(self, owner):
+        self.owner = owner
         self.members = {}
+        self.left = set()
         # Goes up whenever what roster() returns may have changed.
         self.version = 0
 
-    def receive(self, answer, now_ns):
-        """Record an answer; return 'joined', 'left' or None (membership unchanged)."""
+    def receive(self, answer, now_ns, wall_s=0.0):
+        """Record an answer heard at wall_s; return 'joined', 'left' or None (no change)."""
+        if answer.participant in self.left:
+            return None  # a callback that ran after leave(): leaving is final
         if answer.leaving:
+            self.left.add(answer.participant)
             if self.members.pop(answer.participant, None) is None:
                 return None
             self.version += 1
             return 'left'
         member = self.members.get(answer.participant)
         if member is None:
-            self.members[answer.participant] = _Member(answer, now_ns)
+            self.members[answer.participant] = _Member(answer, now_ns, wall_s)
             return 'joined'
         member.answer = answer
+        member.heard_wall = wall_s
         if member.synced:
             self._settle_offsets(member)
         return None
@@ -186,9 +197,14 @@ class StepLedger:
         return {pid for pid, member in self.members.items() if member.synced}
 
     def drop(self, participant):
-        """Go on without a participant (it may join again by answering)."""
-        if self.members.pop(participant, None) is not None:
+        """Go on without a participant (it may join again by answering); never the owner."""
+        if participant != self.owner and self.members.pop(participant, None) is not None:
             self.version += 1
+
+    def silent(self, wall_s, timeout_s):
+        """Return the participants nothing was heard from for longer than timeout_s (wall)."""
+        return [pid for pid, member in self.members.items()
+                if pid != self.owner and wall_s - member.heard_wall > timeout_s]
 
     def roster(self, owner, now_ns, waiting=()):
         """Return the roster to publish: the counted members and the topics they handle."""
@@ -242,8 +258,9 @@ class StepLedger:
         stamps = self._latest_stamps()
         for pid, member in self.members.items():
             answer = member.answer
+            floor = member.stamp_floor
             behind = [(pid, topic, 0) for topic, stamp in answer.heard_stamp.items()
-                      if stamp < stamps.get(topic, stamp)]
+                      if max(stamp, floor.get(topic, stamp)) < stamps.get(topic, stamp)]
             reasons.extend(behind)
             if not member.synced and not behind and answer.step_ns >= now_ns:
                 caught_up.append(member)
@@ -264,13 +281,19 @@ class StepLedger:
                 self.members[pid].offset[topic] += due
 
     def forgive(self, participant, topic):
-        """Go on without what a member has not heard: counted messages, or the member itself."""
+        """
+        Go on without what a live member has not heard on topic (it stays a member).
+
+        On a stamped topic the member is not waited for up to the latest stamp sent so far; on
+        a counted one, for the messages sent so far: should they still come, they are surplus.
+        """
         member = self.members[participant]
-        if not member.synced or topic in self._latest_stamps():
-            self.drop(participant)
-            return
-        member.offset[topic] = (self._sent_since_join().get(topic, 0)
-                                - member.answer.heard.get(topic, 0))
+        stamps = self._latest_stamps()
+        if topic in stamps:
+            member.stamp_floor[topic] = stamps[topic]
+        else:
+            member.offset[topic] = (self._sent_since_join().get(topic, 0)
+                                    - member.answer.heard.get(topic, 0))
 
     def describe(self, reason, now_ns):
         """Return a reason from waiting_for() in words, naming the node."""

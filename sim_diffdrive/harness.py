@@ -52,6 +52,7 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sim_diffdrive.angles import yaw_from_quaternion
+from sim_diffdrive.dds_profile import use_package_profile
 from sim_diffdrive.lockstep import Lockstep
 from sim_diffdrive.sim_node import UnicycleSim
 
@@ -190,6 +191,7 @@ class SimGraph(Lockstep):
 
     def __init__(self, context=None, executor_class=SingleThreadedExecutor):
         self._own_context = context is None
+        use_package_profile()  # takes effect if no node of this process was made before
         if context is None:
             context = Context()
             rclpy.init(context=context, domain_id=isolated_domain_id())

@@ -18,9 +18,17 @@ The clock owner's side of the lockstep: step when every participant has answered
 ``unicycle_sim`` with ``publish_clock`` and ``lockstep`` hands its stepping to a LockstepOwner:
 it listens to the participants' answers on ``<clock>/answers`` (see handshake.py and
 participant.py), publishes who is counted on ``<clock>/roster``, steps the simulator when the
-last step is settled and ``real_time_factor`` allows it, freewheels until the first answer
-(as PX4's lockstep does), and goes on without a participant that stays silent for
-``lockstep_timeout`` wall seconds, saying who it was.
+last step is settled and ``real_time_factor`` allows it, and freewheels until the first answer
+(as PX4's lockstep does).
+
+No single lost sample may stall or skew a run.  While the clock is held the owner re-sends the
+current ``/clock`` and the roster every ``RESEND_S`` (rclpy's TimeSource takes ``/clock``
+best-effort, so a lost step is otherwise never repaired), and a participant that sees the same
+clock again answers again.  The package's Fast DDS profile (fastdds_profile.xml) repairs lost
+commands, odometry and answers within tens of milliseconds.  A participant is given up only
+after ``lockstep_timeout`` wall seconds in which nothing at all was heard from it; one that
+keeps answering is waited for, and what it has not heard after that long is forgiven with a
+warning, never the participant.  The simulator never gives itself up.
 """
 
 import time
@@ -37,9 +45,10 @@ from std_msgs.msg import String
 _NS = 1_000_000_000
 # Freewheeling catches up at most this many steps per timer call.
 _MAX_CATCH_UP = 20
-# While the clock is held, the roster is repeated this often [s, wall]: participants take it for
-# a sign that the simulator is alive (their odometry is late because time stands still).
-_ROSTER_REPEAT_S = 0.25
+# While the clock is held, /clock and the roster are re-sent this often [s, wall]: a participant
+# that lost the step's /clock gets it again, and takes the roster for a sign that the
+# simulator is alive (its odometry is late because time stands still).
+RESEND_S = 0.01
 
 
 class LockstepOwner:
@@ -47,8 +56,8 @@ class LockstepOwner:
 
     def __init__(self, sim):
         self.sim = sim
-        self.ledger = StepLedger()
         self._owner_id = sim.get_fully_qualified_name() + '#owner'
+        self.ledger = StepLedger(self._owner_id)
         clock_topic = sim.clock_topic
         self._answer_topic = answer_topic(clock_topic)
         self._roster_pub = sim.create_publisher(String, roster_topic(clock_topic), ROSTER_QOS)
@@ -64,7 +73,8 @@ class LockstepOwner:
         self._waiting = None  # what the current step waits for; None: to be worked out
         self._announced = set()
         self._roster_version = -1
-        self._roster_wall = 0.0
+        self._resent_wall = 0.0
+        self._warned_wall = 0.0
         self._publish_roster()
 
     def next_step(self, step_ns):
@@ -96,9 +106,8 @@ class LockstepOwner:
         waiting = self._waiting
         self._publish_roster(waiting)
         if waiting:
-            if waited <= sim.params.lockstep_timeout:
+            if waited <= sim.params.lockstep_timeout or not self._give_up(waiting):
                 return
-            self._give_up(waiting)
         if waited >= sim.step_budget_s:
             sim.step()
             self._keep_schedule(wall, 1)
@@ -125,7 +134,7 @@ class LockstepOwner:
                 f'Ignoring a message on {self._answer_topic}: {error}', throttle_duration_sec=5.0)
             return
         now_ns = self.sim.now_ns()
-        if self.ledger.receive(answer, now_ns) == 'left':
+        if self.ledger.receive(answer, now_ns, time.monotonic()) == 'left':
             self.sim.get_logger().info(f'Lockstep: {answer.node} left at {now_ns / _NS:.3f} s')
         self._on_news()
 
@@ -139,12 +148,15 @@ class LockstepOwner:
         # stepping as fast as it could then lost commands (its cmd_vel queues overflowed).
 
     def _publish_roster(self, waiting=()):
-        """Tell the participants who is counted when that changed; repeat it while waiting."""
+        """Tell the participants who is counted when that changed; while waiting, re-send."""
         ledger = self.ledger
         now = time.monotonic()
-        if ledger.version == self._roster_version and not (
-                waiting and now - self._roster_wall >= _ROSTER_REPEAT_S):
+        resend = waiting and now - self._resent_wall >= RESEND_S
+        if ledger.version == self._roster_version and not resend:
             return
+        if resend:
+            self.sim.repeat_clock()
+            self._resent_wall = now
         now_ns = self.sim.now_ns()
         roster = ledger.roster(self.sim.get_fully_qualified_name(), now_ns,
                                [ledger.describe(reason, now_ns) for reason in waiting])
@@ -155,23 +167,42 @@ class LockstepOwner:
                     f'{now_ns / _NS:.3f} s on; {len(roster.members) - 1} participant(s)')
         self._announced = roster.members
         self._roster_version = ledger.version
-        self._roster_wall = now
         self._roster_pub.publish(String(data=roster.encode()))
 
     def _give_up(self, waiting):
-        """Go on without what did not come within lockstep_timeout; say who it was."""
+        """
+        After lockstep_timeout: drop the silent, forgive what the live have not heard.
+
+        Return whether the step may go on; a live participant that has not answered the step
+        is waited for still (it answers again at each re-sent /clock), with a warning.
+        """
         ledger = self.ledger
+        logger = self.sim.get_logger()
+        timeout = self.sim.params.lockstep_timeout
         now_ns = self.sim.now_ns()
+        wall = time.monotonic()
+        for pid in ledger.silent(wall, timeout):
+            answer = ledger.members[pid].answer
+            logger.warning(
+                f'Lockstep: nothing heard from {answer.node} for {timeout:g} s (its last answer: '
+                f'{answer.step_ns / _NS:.3f} s); going on without it')
+            ledger.drop(pid)
+        held = []
         for reason in waiting:
             pid, topic, _ = reason
             if pid not in ledger.members:
-                continue  # dropped for another reason already
-            self.sim.get_logger().warning(
-                f'Lockstep: {ledger.describe(reason, now_ns)} within '
-                f'{self.sim.params.lockstep_timeout:g} s; going on without it')
+                continue  # dropped as silent
             if topic is None:
-                ledger.drop(pid)
-            else:
-                ledger.forgive(pid, topic)
+                held.append(reason)
+                continue
+            logger.warning(f'Lockstep: {ledger.describe(reason, now_ns)} within {timeout:g} s; '
+                           'going on without those message(s)')
+            ledger.forgive(pid, topic)
         self._waiting = None
         self._publish_roster()
+        if held and wall - self._warned_wall >= timeout:
+            self._warned_wall = wall
+            logger.warning('Lockstep: holding the clock for ' + '; '.join(
+                ledger.describe(reason, now_ns) for reason in held)
+                + ' (it still answers, so it is waited for)')
+        return not held

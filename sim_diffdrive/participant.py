@@ -26,6 +26,8 @@ import time
 import uuid
 
 from rclpy.clock import ClockType
+from rclpy.duration import Duration
+from rclpy.executors import MultiThreadedExecutor
 from rclpy.qos import DurabilityPolicy
 from rclpy.qos import QoSProfile
 from rclpy.qos import ReliabilityPolicy
@@ -60,9 +62,12 @@ class MessageCounter:
         self._ignored = ignored_topics(clock_topic)
         self.sent = {}
         self.heard = {}
+        # The highest header stamp [ns] published / handled per topic: a foreign node's stale
+        # or zero stamp never lowers what was heard.
         self.sent_stamp = {}
         self.heard_stamp = {}
         self.clock_ns = None
+        self.clock_messages = 0  # /clock messages handled, repeats included
         self._on_callback = on_callback
         self.wrap_new()
 
@@ -99,6 +104,7 @@ class MessageCounter:
         def counted(msg):
             callback(msg)
             self.clock_ns = msg.clock.sec * _NS + msg.clock.nanosec
+            self.clock_messages += 1
             self._after()
         return counted
 
@@ -107,7 +113,9 @@ class MessageCounter:
             self.heard[topic] += 1
             header = getattr(args[0], 'header', None)
             if header is not None:
-                self.heard_stamp[topic] = header.stamp.sec * _NS + header.stamp.nanosec
+                stamp = header.stamp.sec * _NS + header.stamp.nanosec
+                if stamp > self.heard_stamp.get(topic, -1):
+                    self.heard_stamp[topic] = stamp
             callback(*args)
             self._after()
         return counted
@@ -140,7 +148,9 @@ class MessageCounter:
             self.sent[topic] += 1
             header = getattr(msg, 'header', None)
             if header is not None:
-                self.sent_stamp[topic] = header.stamp.sec * _NS + header.stamp.nanosec
+                stamp = header.stamp.sec * _NS + header.stamp.nanosec
+                if stamp > self.sent_stamp.get(topic, -1):
+                    self.sent_stamp[topic] = stamp
             publish(msg)
         return counted
 
@@ -160,6 +170,9 @@ class Participant:
         self.roster = None
         self.roster_wall = None
         self._last = None
+        self._last_clock_messages = 0
+        self.left = False
+        self._executor_checked = False
         # The clock this node runs on (its TimeSource's subscription, remapped or not).
         clock_topic = next((sub.topic_name for sub in node.subscriptions
                             if sub.msg_type is ClockMsg), '/clock')
@@ -192,28 +205,55 @@ class Participant:
         return True
 
     def answer(self, leaving=False):
-        """Publish this node's answer, unless it says nothing new or nobody listens."""
-        if self._publisher.get_subscription_count() == 0:
-            return  # no simulator steps in lockstep (or none yet): spare the hot path
+        """
+        Publish this node's answer, unless nobody listens or it says nothing new.
+
+        An answer already sent is sent again when /clock came again since: the simulator
+        re-sends /clock while it waits, so an answer lost on the way is repeated too.
+        """
+        if self.left or self._publisher.get_subscription_count() == 0:
+            return  # gone, or no simulator steps in lockstep (or none yet): spare the hot path
         counter = self.counter
         answer = Answer(self.id, self.node.get_fully_qualified_name(), counter.clock_ns or 0,
                         dict(counter.sent), dict(counter.heard), leaving,
                         dict(counter.sent_stamp), dict(counter.heard_stamp))
-        if answer == self._last or not self.node.context.ok():
+        repeated_clock = counter.clock_messages != self._last_clock_messages
+        if (answer == self._last and not repeated_clock) or not self.node.context.ok():
             return
         self._last = answer
+        self._last_clock_messages = counter.clock_messages
         msg = String()
         msg.data = answer.encode()
         self._publisher.publish(msg)
 
-    def leave(self):
-        """Tell the simulator not to wait for this node any more (call before destroying it)."""
-        if self._last is not None:
+    def leave(self, ack_timeout=0.5):
+        """
+        Tell the simulator not to wait for this node any more (call before destroying it).
+
+        Final: nothing is answered afterwards.  Waits up to ack_timeout [s, wall] until the
+        simulator has the goodbye, so it goes on at once rather than after lockstep_timeout.
+        """
+        if self._last is not None and not self.left:
             self.answer(leaving=True)
+            self._publisher.wait_for_all_acked(Duration(seconds=ack_timeout))
+        self.left = True
 
     def _answer_if_settled(self):
+        if not self._executor_checked:
+            self._check_executor()
         if self.settled():
             self.answer()
+
+    def _check_executor(self):
+        # A MultiThreadedExecutor may take a due timer and run its callback later on another
+        # thread: the node would look settled in between and answer before its command.
+        executor = self.node.executor
+        if isinstance(executor, MultiThreadedExecutor):
+            raise RuntimeError(
+                f'{self.node.get_fully_qualified_name()} cannot take part in lockstep under a '
+                f'{type(executor).__name__}: its answers need one callback at a time; spin it '
+                'with a SingleThreadedExecutor or rclpy.experimental.EventsExecutor')
+        self._executor_checked = executor is not None
 
     def _on_roster(self, msg):
         try:

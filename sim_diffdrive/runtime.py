@@ -37,6 +37,7 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.experimental import EventsExecutor
 from rclpy.impl.implementation_singleton import rclpy_implementation
 from rclpy.signals import SignalHandlerOptions
+from sim_diffdrive.dds_profile import use_package_profile
 from sim_diffdrive.parameters import ParameterError
 
 EXIT_OK = 0
@@ -98,6 +99,7 @@ def run(make_node, args=None):
     whenever a node's ``shutdown_hook`` failed.
     """
     logger = rclpy.logging.get_logger('motion_challenges')
+    use_package_profile()  # before the first node makes the process's DDS participant
     try:
         rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     except rclpy_implementation.RCLError as error:

@@ -283,9 +283,14 @@ class UnicycleSim(Node):
     def _publish_clock(self):
         msg = ClockMsg()
         msg.clock = Time(nanoseconds=self._sim_ns).to_msg()
+        self._clock_msg = msg
         self._clock_pub.publish(msg)
         if self.taps:
             self.taps.write(self._clock_pub.topic_name, msg, self._sim_ns)
+
+    def repeat_clock(self):
+        """Publish the current /clock again, for a participant that may have lost it."""
+        self._clock_pub.publish(self._clock_msg)
 
     def command_arrived(self):
         """Note a robot's command: with a free clock, the first after a step answers it."""

@@ -26,6 +26,7 @@ import pytest
 import rclpy
 from rclpy.context import Context
 from sim_diffdrive import harness
+from sim_diffdrive.dds_profile import use_package_profile
 from sim_diffdrive.harness import DOMAIN_VARIABLE
 from sim_diffdrive.harness import isolated_domain_id
 from sim_diffdrive.harness import SimGraph
@@ -36,6 +37,7 @@ if os.environ.get('PYTEST_XDIST_WORKER', 'gw0') != 'gw0':
     worker = int(os.environ['PYTEST_XDIST_WORKER'][2:])
     os.environ[DOMAIN_VARIABLE] = str((DOMAIN_ID - 1 + worker) % 100 + 1)
     DOMAIN_ID = isolated_domain_id()
+use_package_profile()  # before this process makes its first node
 # Subprocesses write each log line at once, so a test reads their output as it happens.
 os.environ.setdefault('RCUTILS_LOGGING_BUFFERED_STREAM', '0')
 

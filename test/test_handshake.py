@@ -60,7 +60,7 @@ def motion(step, cmds, odoms, odom_stamp, pid='m'):
 @pytest.fixture
 def joined():
     """Return a ledger and an owner at 20 ms with one motion that joined and caught up."""
-    ledger = StepLedger()
+    ledger = StepLedger('sim')
     owner = Owner(ledger)
     owner.step()
     ledger.receive(motion(owner.now, 0, 1, owner.now), owner.now)
@@ -89,7 +89,7 @@ def test_roster_round_trip():
 
 
 def test_the_roster_names_counted_members_and_the_topics_they_handle():
-    ledger = StepLedger()
+    ledger = StepLedger('sim')
     owner = Owner(ledger)
     owner.step()
     # A simulator on sim time (another robot's) joins: its cmd_vel is not counted on yet.
@@ -112,7 +112,7 @@ def test_the_roster_names_counted_members_and_the_topics_they_handle():
 
 
 def test_alone_the_owner_never_waits():
-    ledger = StepLedger()
+    ledger = StepLedger('sim')
     owner = Owner(ledger)
     for _ in range(3):
         owner.step()
@@ -153,7 +153,7 @@ def test_a_non_member_publisher_never_stalls_and_its_surplus_is_forgotten(joined
 
 
 def test_a_joining_member_holds_the_clock_until_it_caught_up():
-    ledger = StepLedger()
+    ledger = StepLedger('sim')
     owner = Owner(ledger)
     for _ in range(10):
         owner.step()  # freewheeling: ten odometry messages before the motion answers
@@ -175,7 +175,7 @@ def test_a_joining_member_holds_the_clock_until_it_caught_up():
 
 
 def test_what_a_member_sent_before_joining_is_not_owed():
-    ledger = StepLedger()
+    ledger = StepLedger('sim')
     owner = Owner(ledger)
     owner.step()
     ledger.receive(motion(owner.now, 5, 1, owner.now), owner.now)  # 5 commands, maybe lost
@@ -217,7 +217,7 @@ def test_a_lost_message_is_forgiven_once(joined):
 def test_a_burst_on_a_stamped_topic_is_judged_by_its_stamp_not_by_counts():
     # A simulator on sim time catches up after a clock jump with a burst of odometry all
     # stamped alike; its answer may report fewer messages than its robot's controller heard.
-    ledger = StepLedger()
+    ledger = StepLedger('sim')
     owner = Owner(ledger)
     owner.step()
     robot = Answer('r', '/r/unicycle_sim', owner.now, {'/r/odom': 20},
@@ -243,3 +243,53 @@ def test_a_burst_on_a_stamped_topic_is_judged_by_its_stamp_not_by_counts():
     assert ledger.waiting_for(owner.now) == [('c', '/r/odom', 0)]
     assert 'has not heard the latest message on /r/odom' in ledger.describe(
         ('c', '/r/odom', 0), owner.now)
+
+
+def test_the_owner_is_never_dropped_and_only_the_silent_are(joined):
+    ledger, owner = joined
+    ledger.drop('sim')
+    assert ledger.synced() == {'sim', 'm'}
+    # Heard from at 1.0 s of wall time: silent only once the timeout has passed since.
+    ledger.receive(motion(owner.now, 0, 1, owner.now), owner.now, wall_s=1.0)
+    assert ledger.silent(2.5, 2.0) == []
+    assert ledger.silent(3.5, 2.0) == ['m']
+    # The same answer again (a re-sent /clock) counts as being heard from.
+    ledger.receive(motion(owner.now, 0, 1, owner.now), owner.now, wall_s=3.0)
+    assert ledger.silent(3.5, 2.0) == []
+
+
+def test_a_foreign_stale_stamp_never_holds_the_clock(joined):
+    # The owner heard a member's command stamped at the step, then a foreign one stamped 0:
+    # it keeps the highest stamp heard (MessageCounter), so nothing is owed.
+    ledger, owner = joined
+    owner.step()
+    ledger.receive(Answer('sim', '/unicycle_sim', owner.now, {ODOM: owner.odom_sent},
+                          {CMD: 2}, sent_stamp={ODOM: owner.now},
+                          heard_stamp={CMD: owner.now}), owner.now)
+    ledger.receive(Answer('m', '/motion', owner.now, {CMD: 1}, {ODOM: 2},
+                          sent_stamp={CMD: owner.now}, heard_stamp={ODOM: owner.now}),
+                   owner.now)
+    assert ledger.waiting_for(owner.now) == []
+
+
+def test_forgiving_a_stamped_topic_keeps_the_member(joined):
+    ledger, owner = joined
+    owner.step()
+    ledger.receive(motion(owner.now, 0, 1, owner.now - 20 * MS), owner.now)
+    assert ledger.waiting_for(owner.now) == [('m', ODOM, 0)]
+    ledger.forgive('m', ODOM)
+    assert ledger.waiting_for(owner.now) == []
+    assert ledger.synced() == {'sim', 'm'}
+    owner.step()  # the next odometry is waited for again
+    ledger.receive(motion(owner.now, 0, 1, owner.now - 20 * MS), owner.now)
+    assert ledger.waiting_for(owner.now) == [('m', ODOM, 0)]
+
+
+def test_leaving_is_final(joined):
+    ledger, owner = joined
+    assert ledger.receive(Answer('m', '/motion', owner.now, leaving=True), owner.now) == 'left'
+    # A callback that ran after leave() answered once more: it is not taken back in.
+    assert ledger.receive(motion(owner.now, 0, 1, owner.now), owner.now) is None
+    owner.step()
+    assert ledger.waiting_for(owner.now) == []
+    assert ledger.synced() == {'sim'}
