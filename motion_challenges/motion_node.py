@@ -15,8 +15,10 @@
 """
 What every motion node shares: cmd_vel out, odometry in, a timer-driven state machine.
 
-A motion waits until the robot is there (a cmd_vel subscriber, time running, and odometry when
-it needs it), then runs on a timer on the node clock, so it works on wall time and on sim
+A motion waits until its robot is there: odometry has come, and the node that publishes it
+(the robot) is matched on cmd_vel, so a logger or a bridge listening to cmd_vel is not taken
+for the robot; with ``wait_for_odom`` false, any cmd_vel subscriber will do.  Then it runs
+on a timer on the node clock, so it works on wall time and on sim
 time alike, and finishes by publishing a zero Twist and one closing line that compares the goal
 with what odometry says was achieved.  ``shutdown_hook`` (called by runtime.run on every exit
 path) publishes the zero Twist again, so Ctrl-C or SIGTERM mid-motion stops the robot.
@@ -55,9 +57,13 @@ _SETTLE_TICKS = 20
 
 COMMON_PARAMETERS = (
     Spec('start_timeout', 10.0,
-         'How long to wait for the robot (a cmd_vel subscriber, and odometry where the motion '
-         'needs it) before giving up [s, wall time], from when the goal is known (typed).',
+         'How long to wait for the robot (see wait_for_odom) before giving up [s, wall time], '
+         'from when the goal is known (typed).',
          low=0.0, high=3600.0, low_open=True, live=True),
+    Spec('wait_for_odom', True,
+         'Start only once odometry has come and the node that publishes it subscribes cmd_vel '
+         '(the robot). false: any cmd_vel subscriber will do (a robot without odometry); the '
+         'open-loop motions then run blind and cannot confirm where the robot ended.'),
     Spec('odom_timeout', 1.0,
          'Closed loop: stop and fail when no odometry came for this long mid-motion '
          '[s, wall time].',
@@ -132,6 +138,7 @@ class MotionNode(Node):
         self.exit_code = None
         self.start_ns = None
         self._stop_ns = None
+        self._stop_wall = None
         self._settle_ticks = 0
         self._wall_start = None
         self._wall_begun = None
@@ -267,18 +274,36 @@ class MotionNode(Node):
 
     def _missing(self):
         """Return what the motion still waits for, or '' when it can start."""
-        if self.cmd_pub.get_subscription_count() == 0:
-            return f'a subscriber on {self.cmd_pub.topic_name}'
+        cmd_topic = self.cmd_pub.topic_name
+        if self.params.wait_for_odom:
+            robot = self._robot_node()
+            if robot is None:
+                return (f'the robot (a node that publishes {self._odom_topic} and subscribes '
+                        f'{cmd_topic})')
+            if self.cmd_pub.get_subscription_count() < self.count_subscribers(cmd_topic):
+                return f'{cmd_topic} to be matched by {robot}'
+        elif self.cmd_pub.get_subscription_count() == 0:
+            return f'a subscriber on {cmd_topic}'
         lockstep = self.lockstep
         if lockstep is not None and lockstep.owner_present:
             if not lockstep.joined:
                 return 'the simulator to take this node into its lockstep'
             if not lockstep.counted_on(self.cmd_pub.topic_name):
                 return f'the node that drives on {self.cmd_pub.topic_name} to join the lockstep'
-        if self.odom is None and (self.needs_odom or self.count_publishers(self._odom_topic)):
-            # Open loop needs no odometry, but where there is some, the closing line uses it.
+        if self.odom is None and (self.needs_odom or self.params.wait_for_odom
+                                  or self.count_publishers(self._odom_topic)):
+            # Without wait_for_odom open loop needs none, but where there is some, the closing
+            # line uses it.
             return 'odometry on ' + self._odom_topic
         return ''
+
+    def _robot_node(self):
+        """Return the name of a node that publishes our odometry and subscribes our cmd_vel."""
+        def names(infos):
+            return {(info.node_namespace.rstrip('/') + '/' + info.node_name) for info in infos}
+        robots = (names(self.get_publishers_info_by_topic(self._odom_topic))
+                  & names(self.get_subscriptions_info_by_topic(self.cmd_pub.topic_name)))
+        return min(robots) if robots else None
 
     def _on_watchdog(self):
         if self.needs_odom and self.state == MotionState.RUNNING:
@@ -345,6 +370,7 @@ class MotionNode(Node):
             self.stop_robot()
             self.state = MotionState.SETTLING
             self._stop_ns = now_ns
+            self._stop_wall = time.monotonic()
         if self.state == MotionState.SETTLING:
             self._settle(now_ns)
 
@@ -352,12 +378,22 @@ class MotionNode(Node):
         # Report the pose from odometry measured after the stop took effect, if there is any.
         self._settle_ticks += 1
         fresh = self.odom is not None and self.odom.stamp_ns > self._stop_ns
-        if fresh or self._settle_ticks > _SETTLE_TICKS or self.start_odom is None:
+        waited = (self._settle_ticks > _SETTLE_TICKS
+                  and time.monotonic() - self._stop_wall > self.params.odom_timeout)
+        if fresh or waited or self.start_odom is None:
             sim_s = (self._stop_ns - self.start_ns) / _NS
             wall_s = time.monotonic() - self._wall_begun
             end_odom = self.odom if fresh else None
             achieved = self.summary(end_odom)
-            self.finish(EXIT_OK, f'Done in {sim_s:.3f} s ({wall_s:.3f} s wall): {achieved}')
+            if end_odom is not None:
+                self.finish(EXIT_OK, f'Done in {sim_s:.3f} s ({wall_s:.3f} s wall): {achieved}')
+            elif not self.params.wait_for_odom:
+                self.finish(EXIT_OK, f'Sent the whole plan in {sim_s:.3f} s ({wall_s:.3f} s '
+                                     f'wall) to a robot without odometry: {achieved}')
+            else:
+                self.finish(EXIT_FAILED, f'Stopped after {sim_s:.3f} s, but no odometry came '
+                                         'after the stop: where the robot ended is unknown '
+                                         '(is the simulator still running?)')
             if self.params.plot_file:
                 self._plot(end_odom, achieved)
 

@@ -16,10 +16,14 @@
 The open-loop motions' base: follow a PiecewisePlan (motion_challenges.plans) on the node clock.
 
 Each tick publishes the plan's mean command over the coming period, so the commanded integral
-equals the plan's even when a segment ends between two ticks.
+equals the plan's even when a segment ends between two ticks.  On sim time ticks land exactly
+on the clock's steps; on wall time they land late by however long the executor took, so the
+last tick arms a one-shot timer for the plan's end instead, and the final stop is sent then,
+not at the next tick (the robot applies each command when it arrives).
 """
 
 from motion_challenges.motion_node import MotionNode
+from motion_challenges.motion_node import MotionState
 
 _NS = 1_000_000_000
 
@@ -32,6 +36,7 @@ class TimedMotion(MotionNode):
 
     def begin(self, now_ns):
         self._plan = self.plan()
+        self._end_timer = None
 
     def elapsed(self, now_ns):
         return (now_ns - self.start_ns) / _NS
@@ -40,4 +45,14 @@ class TimedMotion(MotionNode):
         t = self.elapsed(now_ns)
         if self._plan.finished(t):
             return None
+        end = self._plan.duration
+        if not self.sim_time and t + self.period >= end:
+            if self._end_timer is None:
+                self._end_timer = self.create_timer(end - t, self._on_plan_end)
+            return self._plan.average(t, end)
         return self._plan.average(t, t + self.period)
+
+    def _on_plan_end(self):
+        self._end_timer.cancel()
+        if self.state == MotionState.RUNNING:
+            self.stop_robot()
