@@ -18,10 +18,15 @@
 from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
 import pytest
+from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.time import Time
+from rosgraph_msgs.msg import Clock as ClockMsg
+from sim_diffdrive.handshake import Answer
+from sim_diffdrive.participant import ANSWER_QOS
 from sim_diffdrive.participant import take_part
+from std_msgs.msg import String
 
 
 @pytest.fixture
@@ -69,3 +74,52 @@ def test_take_part_needs_sim_time(ros_context):
             take_part(node)
     finally:
         node.destroy_node()
+
+
+def test_a_stale_or_zero_stamp_never_lowers_what_was_heard(node):
+    sub = node.create_subscription(Odometry, 'odom', lambda msg: None, 10)
+    counter = take_part(node).counter
+    for seconds in (3, 0, 2):
+        odom = Odometry()
+        odom.header.stamp = Time(seconds=seconds).to_msg()
+        sub.callback(odom)
+    assert counter.heard == {'/odom': 3} and counter.heard_stamp == {'/odom': 3_000_000_000}
+
+
+def test_answers_again_on_a_repeated_clock_and_never_after_leaving(ros_context, node):
+    owner = Node('owner', context=ros_context)
+    answers = []
+    owner.create_subscription(String, '/clock/answers',
+                              lambda msg: answers.append(Answer.decode(msg.data)), ANSWER_QOS)
+    lockstep = take_part(node)
+    clock = next(sub for sub in node.subscriptions if sub.msg_type is ClockMsg)
+    executor = SingleThreadedExecutor(context=ros_context)
+    for each in (node, owner):
+        executor.add_node(each)
+
+    def spin_until(predicate):
+        for _ in range(1000):
+            if predicate():
+                return True
+            executor.spin_once(timeout_sec=0.01)
+        return predicate()
+
+    def tick(seconds):
+        clock.callback(ClockMsg(clock=Time(seconds=seconds).to_msg()))
+
+    try:
+        assert spin_until(lambda: owner.count_publishers('/clock/answers') == 1
+                          and lockstep._publisher.get_subscription_count() == 1)
+        tick(1)
+        assert spin_until(lambda: len(answers) == 1)
+        tick(1)  # the simulator re-sent /clock: its answer may have been lost
+        assert spin_until(lambda: len(answers) == 2)
+        assert answers[0] == answers[1] and answers[1].step_ns == 1_000_000_000
+        lockstep.leave(ack_timeout=1.0)
+        assert spin_until(lambda: len(answers) == 3) and answers[2].leaving
+        tick(2)  # a callback after leave(): nothing more is said
+        executor.spin_once(timeout_sec=0.2)
+        assert len(answers) == 3
+    finally:
+        executor.shutdown()
+        owner.destroy_node()

@@ -10,11 +10,15 @@ if ! "$PYTHON" -c 'import venv, ensurepip' 2>/dev/null; then
   apt-get update -qq && apt-get install -y -qq python3-venv >/dev/null
 fi
 
-if ! command -v ip >/dev/null 2>&1 && [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then
-  # test_two_hosts.py makes two network namespaces with `ip` (iproute2); it skips without it.
-  echo "Installing iproute2 (for the two-hosts test) ..."
-  { apt-get update -qq && apt-get install -y -qq iproute2 >/dev/null; } \
-    || echo "Could not install iproute2: the two-hosts test will be skipped."
+missing=()
+# test_two_hosts.py makes two network namespaces with `ip` (iproute2) and loses packets between
+# them with iptables; it skips without them.
+command -v ip >/dev/null 2>&1 || missing+=(iproute2)
+command -v iptables >/dev/null 2>&1 || [ -x /usr/sbin/iptables ] || missing+=(iptables)
+if [ ${#missing[@]} -gt 0 ] && [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then
+  echo "Installing ${missing[*]} (for the two-hosts tests) ..."
+  { apt-get update -qq && apt-get install -y -qq "${missing[@]}" >/dev/null; } \
+    || echo "Could not install ${missing[*]}: the two-hosts tests will be skipped."
 fi
 
 if [ "${ROS_DISTRO:-}" = "jazzy" ]; then

@@ -1,0 +1,189 @@
+# Copyright 2026 motion_challenges contributors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+What an ordinary graph does to simulated time and to a motion's start, with the real executables.
+
+A node that does not take part publishing stale or zero stamps on cmd_vel, a participant that
+leaves, a participant spun by a MultiThreadedExecutor, and a cmd_vel listener that is not the
+robot: none of them may stall the clock, drop anyone from the lockstep, or let a motion say
+Done without its robot.  (The lossy link is test_two_hosts.py; a participant killed mid-run,
+a busy machine and a slow participant are test_lockstep_processes.py.)
+"""
+
+import math
+import re
+import time
+
+from geometry_msgs.msg import TwistStamped
+import pytest
+from rclpy.clock import Clock
+from rclpy.clock import ClockType
+from rclpy.executors import MultiThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rosgraph_msgs.msg import Clock as ClockMsg
+from sim_diffdrive import harness
+from sim_diffdrive.harness import angle_error
+from sim_diffdrive.harness import pose_of
+from sim_diffdrive.harness import stamp_s
+from sim_diffdrive.harness import stop
+from sim_diffdrive.participant import take_part
+
+FACTOR = 1000.0
+ROTATE = ('angular_speed_deg:=90.0', 'angle_deg:=90.0', 'clockwise:=false')
+
+
+def start(executable, *params):
+    return harness.start(executable, *harness.ros_params(*params))
+
+
+def finish(graph, process, timeout=60.0):
+    """Spin until process exits; return (exit code, output)."""
+    try:
+        assert graph.spin_until(lambda: process.poll() is not None, timeout), process.describe()
+    finally:
+        output = stop(process)
+    return process.returncode, output
+
+
+def at_rest_after(graph, probe, stamp):
+    """Spin until odometry stamped 0.1 s after stamp came; return its yaw."""
+    assert graph.spin_until(lambda: stamp_s(probe.odom) > stamp + 0.1, 10.0)
+    return pose_of(probe.odom)[2]
+
+
+def warnings(output):
+    return [line for line in output.splitlines() if '[WARN]' in line]
+
+
+def test_foreign_stale_and_zero_stamps_never_stall_or_drop_anyone(graph):
+    sim = start('unicycle_sim', 'publish_clock:=true', f'real_time_factor:={FACTOR}',
+                'stamped:=true')
+    probe = graph.probe(use_sim_time=False, listen_only=True)
+    foreign = probe.create_publisher(TwistStamped, 'cmd_vel', 10)
+    stale = []
+
+    def publish_stale():
+        # All-zero commands from a node that does not take part, stamped 0 or 1 s ago, every
+        # few milliseconds: some land between a motion's command and the end of its step.
+        msg = TwistStamped()
+        stamp_ns = 0 if len(stale) % 2 else max(0, round((stamp_s(probe.odom) - 1.0) * 1e9))
+        msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(stamp_ns, 10 ** 9)
+        foreign.publish(msg)
+        stale.append(stamp_ns)
+
+    try:
+        assert graph.spin_until(lambda: probe.odom is not None, 20.0), sim.describe()
+        timer = probe.create_timer(0.003, publish_stale,
+                                   clock=Clock(clock_type=ClockType.STEADY_TIME))
+        # The zero commands stamped 0 do reach the robot (the latest command wins), so this
+        # turn falls short; what matters is that it ran to its end without a stall.
+        code, output = finish(graph, start('rotate_robot', 'use_sim_time:=true',
+                                           'stamped:=true', *ROTATE))
+        assert code == 0 and 'Done in 1.000 s' in output, output
+        timer.cancel()
+        # The simulator is still in its own lockstep: the next turn is exact.
+        code, output = finish(graph, start('rotate_robot', 'use_sim_time:=true',
+                                           'stamped:=true', *ROTATE))
+        assert code == 0, output
+        done = re.search(r'error ([0-9.]+) deg', output)
+        assert done and float(done.group(1)) < 1e-9, output
+    finally:
+        sim_output = stop(sim)
+    assert len(stale) > 100
+    assert not [line for line in warnings(sim_output) if 'Lockstep' in line], sim_output
+    assert 'Refusing cmd_vel stamped' in sim_output  # the foreign commands came
+    assert sim_output.count('takes part from') == 2 and 'going on without' not in sim_output
+
+
+def test_a_participant_that_leaves_never_stalls_the_clock(graph):
+    # With a lockstep_timeout of 30 s, waiting for the leaver would be plain to see.
+    sim = start('unicycle_sim', 'publish_clock:=true', f'real_time_factor:={FACTOR}',
+                'lockstep_timeout:=30.0')
+    probe = graph.probe(use_sim_time=False, listen_only=True)
+    try:
+        assert graph.spin_until(lambda: probe.odom is not None, 20.0), sim.describe()
+        code, output = finish(graph, start('rotate_robot', 'use_sim_time:=true', *ROTATE))
+        assert code == 0, output
+        left_at = time.monotonic()
+        stamp = stamp_s(probe.odom)
+        # Freewheeling again at once: a simulated second passes within a few wall seconds.
+        assert graph.spin_until(lambda: stamp_s(probe.odom) > stamp + 1.0, 5.0)
+        assert time.monotonic() - left_at < 5.0
+        yaw = pose_of(probe.odom)[2]
+        assert angle_error(yaw, math.radians(90.0)) < 1e-12, output
+    finally:
+        sim_output = stop(sim)
+    assert 'Lockstep: /rotate_robot left at' in sim_output
+    assert warnings(sim_output) == [], sim_output
+
+
+def test_a_multithreaded_executor_is_refused_by_name(graph):
+    context = graph.context
+    clock = graph.add(Node('clock_source', context=context))
+    clock_pub = clock.create_publisher(ClockMsg, '/clock', 10)
+    participant = Node('mt_participant', context=context,
+                       parameter_overrides=[Parameter('use_sim_time', value=True)])
+    take_part(participant)
+    executor = MultiThreadedExecutor(context=context)
+    executor.add_node(participant)
+    try:
+        with pytest.raises(RuntimeError, match='MultiThreadedExecutor'):
+            deadline = time.monotonic() + 10.0
+            while time.monotonic() < deadline:
+                msg = ClockMsg()
+                msg.clock.sec = 1
+                clock_pub.publish(msg)
+                graph.spin_for(0.01)
+                executor.spin_once(timeout_sec=0.01)
+    finally:
+        executor.shutdown()
+        participant.destroy_node()
+
+
+def test_a_cmd_vel_listener_is_not_the_robot(graph):
+    # A listener on cmd_vel (as ros2 topic echo or a bridge) is there first; the simulator
+    # comes 3 s after the motion.  Wall time throughout.
+    listener = graph.probe('cmd_vel_listener', use_sim_time=False, listen_only=True,
+                           odom_topic='unused_odom', record_commands=True)
+    motion = start('rotate_robot', *ROTATE)
+    try:
+        assert graph.spin_until(lambda: 'Waiting for the robot' in motion.output(), 20.0)
+        graph.spin_for(3.0)
+        assert motion.poll() is None, motion.output()
+        assert not listener.commands or all(
+            msg.angular.z == 0.0 for _, _, msg in listener.commands)
+        sim = start('unicycle_sim')
+        try:
+            code, output = finish(graph, motion)
+            probe = graph.probe(use_sim_time=False, listen_only=True)
+            assert graph.spin_until(lambda: probe.odom is not None, 10.0)
+        finally:
+            stop(sim)
+    finally:
+        stop(motion)
+    assert code == 0, output
+    done = re.search(r'Done in .*error ([0-9.]+) deg', output)
+    assert done and float(done.group(1)) < 0.5, output
+    assert angle_error(pose_of(probe.odom)[2], math.radians(90.0)) < math.radians(0.5)
+
+
+def test_without_a_robot_the_motion_gives_up_and_never_says_done(graph):
+    graph.probe('cmd_vel_listener', use_sim_time=False, listen_only=True,
+                odom_topic='unused_odom', record_commands=True)
+    code, output = finish(graph, start('rotate_robot', 'start_timeout:=1.0', *ROTATE))
+    assert code == 1, output
+    assert 'Gave up after' in output and 'waiting for the robot' in output
+    assert 'Done' not in output
