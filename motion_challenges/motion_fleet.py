@@ -200,6 +200,8 @@ class MotionFleet(Node):
             if remaining <= 0.0:
                 break
             node.cmd_pub.wait_for_all_acked(Duration(seconds=remaining))
+            if node.lockstep is not None:
+                node.lockstep.wait_acknowledged(max(deadline - time.monotonic(), 0.001))
         ended = []
         for (robot, _, motion), node in zip(self.plan, self.motions):
             state = f'exit code {node.exit_code}' if node.done else 'stopped before the end'

@@ -51,7 +51,8 @@ from sim_diffdrive.runtime import EXIT_FAILED
 from sim_diffdrive.runtime import EXIT_OK
 
 _NS = 1_000_000_000
-# How long to wait for the odometry that shows where the robot came to rest.
+# How long to wait for the odometry that shows where the robot came to rest: this many control
+# periods, or odom_timeout if longer.
 _SETTLE_TICKS = 20
 
 
@@ -138,8 +139,6 @@ class MotionNode(Node):
         self.exit_code = None
         self.start_ns = None
         self._stop_ns = None
-        self._stop_wall = None
-        self._settle_ticks = 0
         self._wall_start = None
         self._wall_begun = None
         self._ready = False
@@ -198,7 +197,7 @@ class MotionNode(Node):
         if self.context.ok():
             self.stop_robot()
             if self.lockstep is not None:
-                self.lockstep.leave()
+                self.lockstep.leave(ack_timeout=self.stop_ack_timeout)
             # Fast DDS sends within publish(); its acknowledgement waits for a heartbeat that
             # can be seconds away, so only a short wait covers a resend on a lossy link.
             if self.stop_ack_timeout > 0.0:
@@ -370,16 +369,16 @@ class MotionNode(Node):
             self.stop_robot()
             self.state = MotionState.SETTLING
             self._stop_ns = now_ns
-            self._stop_wall = time.monotonic()
         if self.state == MotionState.SETTLING:
             self._settle(now_ns)
 
     def _settle(self, now_ns):
         # Report the pose from odometry measured after the stop took effect, if there is any.
-        self._settle_ticks += 1
         fresh = self.odom is not None and self.odom.stamp_ns > self._stop_ns
-        waited = (self._settle_ticks > _SETTLE_TICKS
-                  and time.monotonic() - self._stop_wall > self.params.odom_timeout)
+        # Long enough for a robot whose odometry is much slower than the control rate; on the
+        # node clock, so a loaded machine on sim time waits no less.
+        waited = (now_ns - self._stop_ns) / _NS > max(_SETTLE_TICKS * self.period,
+                                                      self.params.odom_timeout)
         if fresh or waited or self.start_odom is None:
             sim_s = (self._stop_ns - self.start_ns) / _NS
             wall_s = time.monotonic() - self._wall_begun

@@ -235,8 +235,13 @@ class Participant:
         """
         if self._last is not None and not self.left:
             self.answer(leaving=True)
-            self._publisher.wait_for_all_acked(Duration(seconds=ack_timeout))
+            if ack_timeout > 0.0:
+                self.wait_acknowledged(ack_timeout)
         self.left = True
+
+    def wait_acknowledged(self, timeout):
+        """Wait up to timeout [s, wall] until the simulator has every answer sent (a goodbye)."""
+        return self._publisher.wait_for_all_acked(Duration(seconds=timeout))
 
     def _answer_if_settled(self):
         if not self._executor_checked:
