@@ -13,7 +13,7 @@
 # limitations under the License.
 
 """
-The package's Fast DDS profile (fastdds_profile.xml): lost reliable samples repaired in ~20 ms.
+The package's Fast DDS profile (fastdds_profile.xml): lost reliable samples repaired in ~10 ms.
 
 Fast DDS reads the file named by FASTRTPS_DEFAULT_PROFILES_FILE once per process, when the
 process makes its first DDS participant; ``use_package_profile()`` must therefore run before
