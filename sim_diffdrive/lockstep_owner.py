@@ -151,7 +151,9 @@ class LockstepOwner:
         """Tell the participants who is counted when that changed; while waiting, re-send."""
         ledger = self.ledger
         now = time.monotonic()
-        resend = waiting and now - self._resent_wall >= RESEND_S
+        # Only once the step has been held that long: a step that settles in time (nearly all)
+        # sends /clock once.
+        resend = waiting and now - max(self.sim.clock_wall, self._resent_wall) >= RESEND_S
         if ledger.version == self._roster_version and not resend:
             return
         if resend:
