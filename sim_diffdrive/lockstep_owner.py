@@ -55,26 +55,37 @@ class LockstepOwner:
     """Decide when the simulator ``sim`` (a UnicycleSim owning /clock) may step."""
 
     def __init__(self, sim):
+        """
+        Listen for answers; call before the simulator creates its robots' subscriptions.
+
+        Discovery announces a node's subscriptions in the order they were made, so a motion
+        that has discovered its robot's cmd_vel subscription knows of this one too, and cannot
+        take a lockstep owner for a free clock on a lossy link (Participant.owner_present).
+        """
         self.sim = sim
         self._owner_id = sim.get_fully_qualified_name() + '#owner'
         self.ledger = StepLedger(self._owner_id)
-        clock_topic = sim.clock_topic
-        self._answer_topic = answer_topic(clock_topic)
-        self._roster_pub = sim.create_publisher(String, roster_topic(clock_topic), ROSTER_QOS)
+        self._answer_topic = answer_topic(sim.clock_topic)
         sim.create_subscription(String, self._answer_topic, self._on_answer, ANSWER_QOS)
-        # The simulator's own traffic (cmd_vel heard, odom sent) is counted like a
-        # participant's; its answer holds the counter's live dicts, so only its step changes.
-        counter = MessageCounter(sim, clock_topic, self._on_news, timers=False, fixed=True)
-        self._own_answer = Answer(self._owner_id, sim.get_fully_qualified_name(), sim.now_ns(),
-                                  counter.sent, counter.heard, False, counter.sent_stamp,
-                                  counter.heard_stamp)
-        self.ledger.receive(self._own_answer, sim.now_ns())
-        self.ledger.waiting_for(sim.now_ns())  # counts itself from the start
         self._waiting = None  # what the current step waits for; None: to be worked out
         self._announced = set()
         self._roster_version = -1
         self._resent_wall = 0.0
         self._warned_wall = 0.0
+
+    def start(self):
+        """Count the simulator's own traffic from here on (once its robots exist); go."""
+        sim = self.sim
+        self._roster_pub = sim.create_publisher(String, roster_topic(sim.clock_topic),
+                                                ROSTER_QOS)
+        # The simulator's own traffic (cmd_vel heard, odom sent) is counted like a
+        # participant's; its answer holds the counter's live dicts, so only its step changes.
+        counter = MessageCounter(sim, sim.clock_topic, self._on_news, timers=False, fixed=True)
+        self._own_answer = Answer(self._owner_id, sim.get_fully_qualified_name(), sim.now_ns(),
+                                  counter.sent, counter.heard, False, counter.sent_stamp,
+                                  counter.heard_stamp)
+        self.ledger.receive(self._own_answer, sim.now_ns())
+        self.ledger.waiting_for(sim.now_ns())  # counts itself from the start
         self._publish_roster()
 
     def next_step(self, step_ns):

@@ -168,6 +168,16 @@ class UnicycleSim(Node):
         self._sim_ns = 0
         self.lockstep = None
 
+        self.lockstep_owner = None
+        self._clock_pub = None
+        if p.publish_clock:
+            self._clock_pub = self.create_publisher(
+                ClockMsg, '/clock', QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE))
+            self.clock_topic = self._clock_pub.topic_name
+            if p.lockstep:
+                # Before the robots' cmd_vel subscriptions: see LockstepOwner.__init__.
+                self.lockstep_owner = LockstepOwner(self)
+
         # Where else the simulator's traffic goes (an MCAP file, Foxglove): see taps.py.
         self.taps = open_taps(self)
         self.robots = [Robot(self, i, name, model)
@@ -179,11 +189,7 @@ class UnicycleSim(Node):
         self._check_every = max(1, round(p.rate_hz))
         self.create_service(Empty, '~/reset', self._on_reset)
 
-        self.lockstep_owner = None
         if p.publish_clock:
-            self._clock_pub = self.create_publisher(
-                ClockMsg, '/clock', QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE))
-            self.clock_topic = self._clock_pub.topic_name
             self.integrated_ns[:] = 0
             self.clock_wall = time.monotonic()
             self._reaction_s = 0.0
@@ -192,14 +198,13 @@ class UnicycleSim(Node):
             self._max_reaction_s = self._step_ns / _NS / _PACING_MARGIN
             self.step_budget_s = self._step_ns / _NS / p.real_time_factor
             period_s = self.step_budget_s
-            if p.lockstep:
-                self.lockstep_owner = LockstepOwner(self)
+            if self.lockstep_owner is not None:
+                self.lockstep_owner.start()
                 period_s = max(period_s, _LOCKSTEP_TICK_S)
             self.clock_timer = self.create_timer(
                 period_s, self._on_clock_timer, clock=Clock(clock_type=ClockType.STEADY_TIME))
             self._publish_clock()
         else:
-            self._clock_pub = None
             self.clock_timer = None
             self.create_timer(self._step_ns / _NS, self._on_odom_timer)
             if self.get_parameter('use_sim_time').value:
