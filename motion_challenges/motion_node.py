@@ -18,9 +18,9 @@ What every motion node shares: cmd_vel out, odometry in, a timer-driven state ma
 A motion waits until its robot is there: odometry has come, and the node that publishes it
 (the robot) is matched on cmd_vel, so a logger or a bridge listening to cmd_vel is not taken
 for the robot; with ``wait_for_odom`` false, any cmd_vel subscriber will do.  Then it runs
-on a timer on the node clock, so it works on wall time and on sim
-time alike, and finishes by publishing a zero Twist and one closing line that compares the goal
-with what odometry says was achieved.  ``shutdown_hook`` (called by runtime.run on every exit
+on a timer on the node clock, so it works on wall time and on sim time alike, and finishes by
+publishing a zero Twist and one closing line that compares the goal with what odometry says was
+achieved.  ``shutdown_hook`` (called by runtime.run on every exit
 path) publishes the zero Twist again, so Ctrl-C or SIGTERM mid-motion stops the robot.
 
 The laws themselves are plain code: the closed loops, the lag compensation (CommandLog) and the
@@ -287,8 +287,8 @@ class MotionNode(Node):
         if lockstep is not None and lockstep.owner_present:
             if not lockstep.joined:
                 return 'the simulator to take this node into its lockstep'
-            if not lockstep.counted_on(self.cmd_pub.topic_name):
-                return f'the node that drives on {self.cmd_pub.topic_name} to join the lockstep'
+            if not lockstep.counted_on(cmd_topic):
+                return f'the node that drives on {cmd_topic} to join the lockstep'
         if self.odom is None and (self.needs_odom or self.params.wait_for_odom
                                   or self.count_publishers(self._odom_topic)):
             # Without wait_for_odom open loop needs none, but where there is some, the closing

@@ -120,11 +120,9 @@ def test_a_participant_that_leaves_never_stalls_the_clock(graph):
         assert graph.spin_until(lambda: probe.odom is not None, 20.0), sim.describe()
         code, output = finish(graph, start('rotate_robot', 'use_sim_time:=true', *ROTATE))
         assert code == 0, output
-        left_at = time.monotonic()
         stamp = stamp_s(probe.odom)
         # Freewheeling again at once: a simulated second passes within a few wall seconds.
         assert graph.spin_until(lambda: stamp_s(probe.odom) > stamp + 1.0, 5.0)
-        assert time.monotonic() - left_at < 5.0
         yaw = pose_of(probe.odom)[2]
         assert angle_error(yaw, math.radians(90.0)) < 1e-12, output
     finally:

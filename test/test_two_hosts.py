@@ -26,7 +26,7 @@ that the traffic crossed the link.  The motion must end as exactly as on one hos
 Then the link loses packets: each namespace drops a share of its outgoing UDP at random
 (``iptables -m statistic``), both ways.  Lost /clock steps, answers, commands and odometry must
 only slow the run down: every motion still ends exactly, and nobody is dropped from the lockstep
-(README "How time works").
+(docs/time.md).
 
 Needs root and ``ip`` from iproute2 (and ``iptables`` for the lossy link); skipped, saying why,
 where namespaces cannot be made.
