@@ -43,7 +43,7 @@ setup(
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
-            'unicycle_sim = sim_diffdrive.sim_node:main',
+            'unicycle_sim = sim_diffdrive.sim.node:main',
             'rotate_robot = motion_challenges.rotate_robot:main',
             'circle_back_and_forth = motion_challenges.circle_back_and_forth:main',
             'timed_out_and_back = motion_challenges.timed_out_and_back:main',
@@ -51,6 +51,6 @@ setup(
             'motion_fleet = motion_challenges.motion_fleet:main',
         ],
         # The sim_graph fixture, for testing controllers against the simulator.
-        'pytest11': ['sim_graph = sim_diffdrive.pytest_plugin'],
+        'pytest11': ['sim_graph = sim_diffdrive.testing.pytest_plugin'],
     },
 )

@@ -44,9 +44,9 @@ from rclpy.duration import Duration
 from rclpy.node import Node
 from sim_diffdrive.angles import yaw_from_quaternion
 from sim_diffdrive.angles import YawAccumulator
+from sim_diffdrive.lockstep.participant import take_part
 from sim_diffdrive.parameters import declare
 from sim_diffdrive.parameters import Spec
-from sim_diffdrive.participant import take_part
 from sim_diffdrive.runtime import EXIT_FAILED
 from sim_diffdrive.runtime import EXIT_OK
 

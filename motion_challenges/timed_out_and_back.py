@@ -26,9 +26,9 @@ import math
 from motion_challenges.motion_node import rate_spec
 from motion_challenges.plans import out_and_back_plan
 from motion_challenges.timed_motion import TimedMotion
-from sim_diffdrive.kinematics import integrate
 from sim_diffdrive.parameters import Spec
 from sim_diffdrive.runtime import run
+from sim_diffdrive.sim.kinematics import integrate
 
 
 def out_and_back_specs(rate_hz):

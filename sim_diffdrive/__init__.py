@@ -15,8 +15,10 @@
 """
 A light kinematic unicycle simulator (Twist in, Odometry out, optional /clock), and its tools.
 
-Pure maths (kinematics, angles, handshake), the node plumbing every node here shares
-(parameters, runtime, participant), the simulator node (sim_node, lockstep_owner), and the
-harness to test robot code against it (harness, lockstep, pytest_plugin).  Nothing here
-depends on the motions package; they stand on this one (see README "Architecture").
+One folder per concern: ``sim/`` (the simulator node, its robots, the fleet and kinematics),
+``lockstep/`` (simulated time shared across nodes and processes), ``taps/`` (what watches a
+run: MCAP, Foxglove), ``testing/`` (SimGraph, processes, the ``sim_graph`` fixture).  Beside
+them, the plumbing the motions share: parameters, runtime (one ``main()``), angles, the DDS
+profile.  Public entry points: ``sim_diffdrive.harness`` (SimGraph and what tests need) and
+``sim_diffdrive.participant.take_part``.  Nothing here depends on the motions package.
 """

@@ -39,7 +39,7 @@ from sim_diffdrive.harness import ros_params
 from sim_diffdrive.harness import stamp_s
 from sim_diffdrive.harness import twist as command
 from sim_diffdrive.harness import twist_of as twist
-from sim_diffdrive.sim_node import UnicycleSim
+from sim_diffdrive.sim.node import UnicycleSim
 
 NS = 1_000_000_000
 SIM_CLOCK = ('publish_clock:=true', 'real_time_factor:=4.0', 'rate_hz:=25.0')

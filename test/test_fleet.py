@@ -20,12 +20,12 @@ import random
 import numpy as np
 import pytest
 from sim_diffdrive.angles import normalize_angle
-from sim_diffdrive.fleet import Fleet
-from sim_diffdrive.fleet import integrate_all
-from sim_diffdrive.fleet import normalize_angles
-from sim_diffdrive.kinematics import integrate
-from sim_diffdrive.kinematics import SMALL_ANGLE
-from sim_diffdrive.kinematics import UnicycleModel
+from sim_diffdrive.sim.fleet import Fleet
+from sim_diffdrive.sim.fleet import integrate_all
+from sim_diffdrive.sim.fleet import normalize_angles
+from sim_diffdrive.sim.kinematics import integrate
+from sim_diffdrive.sim.kinematics import SMALL_ANGLE
+from sim_diffdrive.sim.kinematics import UnicycleModel
 
 
 def state(model):

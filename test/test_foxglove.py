@@ -30,7 +30,7 @@ from nav_msgs.msg import Odometry
 import pytest
 from rclpy.serialization import deserialize_message
 from sim_diffdrive import harness
-from sim_diffdrive.msg_definitions import message_definition
+from sim_diffdrive.taps.msg_definitions import message_definition
 
 pytest.importorskip('foxglove')
 sync_client = pytest.importorskip('websockets.sync.client')
@@ -266,7 +266,7 @@ def test_a_port_in_use_is_reported_and_the_simulator_runs(procs):
 
 def test_without_foxglove_sdk_the_simulator_says_so_and_runs(graph, tmp_path):
     code = ('import sys; sys.modules["foxglove"] = None\n'
-            'from sim_diffdrive.sim_node import main\n'
+            'from sim_diffdrive.sim.node import main\n'
             f'sys.exit(main(["unicycle_sim", *{harness.ros_params("foxglove_port:=8765")}]))')
     sim = harness.start_python(code, log_path=tmp_path / 'sim.log')
     try:

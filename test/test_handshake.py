@@ -15,9 +15,9 @@
 """The lockstep bookkeeping without ROS: who is waited for, and for what."""
 
 import pytest
-from sim_diffdrive.handshake import Answer
-from sim_diffdrive.handshake import Roster
-from sim_diffdrive.handshake import StepLedger
+from sim_diffdrive.lockstep.handshake import Answer
+from sim_diffdrive.lockstep.handshake import Roster
+from sim_diffdrive.lockstep.handshake import StepLedger
 
 MS = 1_000_000
 ODOM = '/odom'

@@ -36,7 +36,7 @@ from sim_diffdrive.harness import pose_of
 from sim_diffdrive.harness import ros_params
 from sim_diffdrive.harness import stamp_s
 from sim_diffdrive.harness import twist_of as twist
-from sim_diffdrive.sim_node import UnicycleSim
+from sim_diffdrive.sim.node import UnicycleSim
 
 # Simulated seconds per wall second, and simulator steps per simulated second: a step every
 # 10 ms of wall time keeps several simulators and motions within two cores.

@@ -40,8 +40,8 @@ from sim_diffdrive.harness import ros_params
 from sim_diffdrive.harness import stamp_s
 from sim_diffdrive.parameters import live_parameters
 from sim_diffdrive.parameters import ParameterError
-from sim_diffdrive.sim_node import PARAMETERS
-from sim_diffdrive.sim_node import UnicycleSim
+from sim_diffdrive.sim.node import PARAMETERS
+from sim_diffdrive.sim.node import UnicycleSim
 
 NS = 1_000_000_000
 STEP_NS = NS // 50  # the simulator's default rate_hz

@@ -39,7 +39,7 @@ from sim_diffdrive.harness import angle_error
 from sim_diffdrive.harness import pose_of
 from sim_diffdrive.harness import stamp_s
 from sim_diffdrive.harness import stop
-from sim_diffdrive.participant import take_part
+from sim_diffdrive.lockstep.participant import take_part
 
 FACTOR = 1000.0
 ROTATE = ('angular_speed_deg:=90.0', 'angle_deg:=90.0', 'clockwise:=false')

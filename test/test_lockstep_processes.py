@@ -60,7 +60,7 @@ STALLER = """
 import time, rclpy
 from nav_msgs.msg import Odometry
 from rclpy.parameter import Parameter
-from sim_diffdrive.participant import take_part
+from sim_diffdrive.lockstep.participant import take_part
 rclpy.init()
 node = rclpy.create_node('staller', parameter_overrides=[Parameter('use_sim_time', value=True)])
 stalled = []

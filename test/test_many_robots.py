@@ -34,7 +34,7 @@ from sim_diffdrive.harness import angle_error
 from sim_diffdrive.harness import pose_of
 from sim_diffdrive.harness import SimGraph
 from sim_diffdrive.parameters import ParameterError
-from sim_diffdrive.sim_node import UnicycleSim
+from sim_diffdrive.sim.node import UnicycleSim
 from std_srvs.srv import Empty
 from tf2_msgs.msg import TFMessage
 

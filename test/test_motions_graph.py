@@ -24,7 +24,7 @@ from motion_challenges.timed_out_and_back import TimedOutAndBack
 import pytest
 from sim_diffdrive.harness import angle_error
 from sim_diffdrive.harness import pose_of
-from sim_diffdrive.sim_node import UnicycleSim
+from sim_diffdrive.sim.node import UnicycleSim
 
 MM = 1e-3
 HUNDREDTH_DEG = math.radians(0.01)

@@ -43,10 +43,10 @@ ROS_PACKAGES = {'ament_index_python', 'geometry_msgs', 'nav_msgs', 'rcl_interfac
                 'rosgraph_msgs', 'std_msgs', 'std_srvs', 'tf2_msgs'}
 # Optional dependencies (pip packages without a rosdep key): each imported only by the module of
 # the feature that needs it, which the simulator imports only when that feature is asked for and
-# runs without when it is missing (sim_diffdrive/taps.py).  Not exec_depends.
+# runs without when it is missing (sim_diffdrive/taps/__init__.py).  Not exec_depends.
 OPTIONAL = {
-    'mcap': ['sim_diffdrive/recorder.py'],  # record_file
-    'foxglove': ['sim_diffdrive/foxglove_live.py'],  # foxglove_port
+    'mcap': ['sim_diffdrive/taps/recorder.py'],  # record_file
+    'foxglove': ['sim_diffdrive/taps/foxglove_live.py'],  # foxglove_port
 }
 
 

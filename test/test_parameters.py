@@ -22,7 +22,7 @@ from rclpy.parameter import Parameter
 from sim_diffdrive.parameters import declare
 from sim_diffdrive.parameters import ParameterError
 from sim_diffdrive.parameters import Spec
-from sim_diffdrive.sim_node import UnicycleSim
+from sim_diffdrive.sim.node import UnicycleSim
 
 SPEED = Spec('speed', 0.5, 'Forward speed [m/s].', low=0.0, high=2.0)
 RATE = Spec('rate', 10.0, 'Tick rate [Hz].', low=0.0, high=100.0, low_open=True)

@@ -29,7 +29,7 @@ from motion_challenges.rotate_robot import RotateRobot
 from motion_challenges.timed_out_and_back import TimedOutAndBack
 import pytest
 from sim_diffdrive.harness import ros_params
-from sim_diffdrive.sim_node import UnicycleSim
+from sim_diffdrive.sim.node import UnicycleSim
 import yaml
 
 CONFIG = Path(__file__).resolve().parents[1] / 'config'

@@ -23,9 +23,9 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.time import Time
 from rosgraph_msgs.msg import Clock as ClockMsg
-from sim_diffdrive.handshake import Answer
-from sim_diffdrive.participant import ANSWER_QOS
-from sim_diffdrive.participant import take_part
+from sim_diffdrive.lockstep.handshake import Answer
+from sim_diffdrive.lockstep.participant import ANSWER_QOS
+from sim_diffdrive.lockstep.participant import take_part
 from std_msgs.msg import String
 
 

@@ -36,13 +36,13 @@ from rosgraph_msgs.msg import Clock
 from sim_diffdrive.harness import ros_params
 from sim_diffdrive.harness import start
 from sim_diffdrive.harness import stop
-from sim_diffdrive.msg_definitions import message_definition
-from sim_diffdrive.msg_definitions import SEPARATOR
+from sim_diffdrive.taps.msg_definitions import message_definition
+from sim_diffdrive.taps.msg_definitions import SEPARATOR
 from tf2_msgs.msg import TFMessage
 
 # Optional dependencies (pip install mcap mcap-ros2-support): without them, skipped.
 mcap_reader = pytest.importorskip('mcap.reader')
-recorder = pytest.importorskip('sim_diffdrive.recorder')
+recorder = pytest.importorskip('sim_diffdrive.taps.recorder')
 
 TYPES = {'/cmd_vel': Twist, '/odom': Odometry, '/tf': TFMessage, '/clock': Clock, '/path': Path}
 COMMANDS = [(0.4, 0.0), (0.3, 0.5), (0.0, -0.8)]

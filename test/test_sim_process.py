@@ -25,7 +25,7 @@ import subprocess
 import pytest
 from sim_diffdrive.harness import angle_error
 from sim_diffdrive.harness import pose_of
-from sim_diffdrive.participant import take_part
+from sim_diffdrive.lockstep.participant import take_part
 
 NS = 1_000_000_000
 SIM_ARGS = ('--ros-args', '-p', 'publish_clock:=true', '-p', 'real_time_factor:=5.0')

@@ -16,7 +16,7 @@
 """
 Stamped commands: motions that publish TwistStamped, and a simulator on another's clock.
 
-In one process, stepped in lockstep by the test (see sim_diffdrive/harness.py).
+In one process, stepped in lockstep by the test (see sim_diffdrive/testing/).
 """
 
 import math
@@ -30,7 +30,7 @@ from rclpy.node import Node
 from rclpy.time import Time
 from sim_diffdrive.harness import angle_error
 from sim_diffdrive.harness import pose_of
-from sim_diffdrive.sim_node import UnicycleSim
+from sim_diffdrive.sim.node import UnicycleSim
 
 STEP_NS = 20_000_000  # the simulators' default 50 Hz
 

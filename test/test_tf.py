@@ -38,13 +38,13 @@ from sim_diffdrive.harness import pose_of
 from sim_diffdrive.harness import ros_params
 from sim_diffdrive.harness import start
 from sim_diffdrive.harness import stop
-from sim_diffdrive.odom_tf import namespaced_frame
-from sim_diffdrive.odom_tf import OdomTransform
-from sim_diffdrive.odom_tf import resolve_frame
-from sim_diffdrive.odom_tf import TF_QOS
-from sim_diffdrive.odom_tf import TF_TOPIC
 from sim_diffdrive.parameters import Spec
-from sim_diffdrive.sim_node import UnicycleSim
+from sim_diffdrive.sim.node import UnicycleSim
+from sim_diffdrive.sim.odom_tf import namespaced_frame
+from sim_diffdrive.sim.odom_tf import OdomTransform
+from sim_diffdrive.sim.odom_tf import resolve_frame
+from sim_diffdrive.sim.odom_tf import TF_QOS
+from sim_diffdrive.sim.odom_tf import TF_TOPIC
 from tf2_msgs.msg import TFMessage
 
 

@@ -51,8 +51,8 @@ from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
-from sim_diffdrive.robot import covariance
-from sim_diffdrive.sim_node import PARAMETERS as SIM_PARAMETERS
+from sim_diffdrive.sim.node import PARAMETERS as SIM_PARAMETERS
+from sim_diffdrive.sim.robot import covariance
 
 # The simulator's real_time_factor for the achievable factor: far above what it reaches.
 FREE_CLOCK_RTF = 10000.0

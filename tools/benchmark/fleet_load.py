@@ -51,7 +51,7 @@ from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.signals import SignalHandlerOptions
-from sim_diffdrive.participant import take_part
+from sim_diffdrive.lockstep.participant import take_part
 
 LISTEN_TOPIC = 'bench_odom'
 TOOLS_DIR = Path(__file__).resolve().parent.parent

@@ -32,7 +32,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sim_diffdrive.harness import SimGraph
 from sim_diffdrive.harness import twist
-from sim_diffdrive.sim_node import UnicycleSim
+from sim_diffdrive.sim.node import UnicycleSim
 
 
 def init_context(domain_id, discovery_range=None):

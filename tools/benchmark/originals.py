@@ -29,8 +29,8 @@ import math
 
 from benchmark.config import NS
 import numpy as np
-from sim_diffdrive.kinematics import integrate
-from sim_diffdrive.kinematics import UnicycleModel
+from sim_diffdrive.sim.kinematics import integrate
+from sim_diffdrive.sim.kinematics import UnicycleModel
 
 # The original programs' pi.
 ORIGINAL_PI = 3.14

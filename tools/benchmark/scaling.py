@@ -28,7 +28,7 @@ from motion_challenges.odom_out_and_back import OdomOutAndBack
 from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from sim_diffdrive.harness import closing_line
-from sim_diffdrive.sim_node import UnicycleSim
+from sim_diffdrive.sim.node import UnicycleSim
 
 DONE_LINE = re.compile(r'Done in ([0-9.]+) s \(([0-9.]+) s wall\)')
 ERROR_LINE = re.compile(r'error ([0-9.]+) mm, ([0-9.]+) deg')

@@ -18,7 +18,10 @@ Where else the simulator's traffic goes: an MCAP file (record_file), Foxglove (f
 A tap has a ``name``, ``wants_path`` (whether the simulator should build the path message for
 it even when nobody subscribes on DDS), ``write(topic, msg, stamp_ns)`` — called with every
 command the simulator hears and every odometry, /tf, /clock and path message it publishes,
-before the message is reused — and ``close()``.  Both kinds are optional dependencies: when
+before the message is reused — ``close()``, and optionally ``step(stamp_ns, fleet)``, called
+once per odometry publish with the whole fleet (sim/fleet.py: numpy arrays ``x``, ``y``,
+``yaw``, ``linear``, ``angular``, ``target_linear``, ``target_angular`` and the list
+``names``), for a tap that draws every robot at once.  Both kinds are optional dependencies: when
 one is missing, or a file cannot be opened, the simulator says so once and runs without it.
 A tap that fails while writing (a full disk) is reported once and dropped; the simulation
 goes on.
@@ -54,14 +57,23 @@ class Taps:
 
     def write(self, topic, msg, stamp_ns):
         for tap in list(self._taps):
-            try:
-                tap.write(topic, msg, stamp_ns)
-            except Exception as error:  # whatever a file or a socket raises: report, go on
-                self._node.get_logger().error(
-                    f'{tap.name}: {type(error).__name__}: {error}; stopped writing to it, the '
-                    'simulation goes on')
-                self._taps.remove(tap)
-                self._close(tap)
+            self._call(tap, tap.write, topic, msg, stamp_ns)
+
+    def _call(self, tap, method, *args):
+        try:
+            method(*args)
+        except Exception as error:  # whatever a file or a socket raises: report, go on
+            self._node.get_logger().error(
+                f'{tap.name}: {type(error).__name__}: {error}; stopped writing to it, the '
+                'simulation goes on')
+            self._taps.remove(tap)
+            self._close(tap)
+
+    def step(self, stamp_ns, fleet):
+        """Hand every tap that draws the whole fleet its state at stamp_ns."""
+        for tap in list(self._taps):
+            if hasattr(tap, 'step'):
+                self._call(tap, tap.step, stamp_ns, fleet)
 
     def close(self):
         """Close every tap (idempotent)."""
@@ -101,10 +113,10 @@ def _open(node, parameter, package, make):
 
 
 def _recorder():
-    from sim_diffdrive.recorder import McapRecorder
+    from sim_diffdrive.taps.recorder import McapRecorder
     return McapRecorder
 
 
 def _foxglove():
-    from sim_diffdrive.foxglove_live import FoxgloveLive
+    from sim_diffdrive.taps.foxglove_live import FoxgloveLive
     return FoxgloveLive

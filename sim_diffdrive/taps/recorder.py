@@ -36,8 +36,8 @@ from mcap.well_known import MessageEncoding
 from mcap.well_known import SchemaEncoding
 from mcap.writer import Writer
 from rclpy.serialization import serialize_message
-from sim_diffdrive.msg_definitions import message_definition
-from sim_diffdrive.msg_definitions import type_name
+from sim_diffdrive.taps.msg_definitions import message_definition
+from sim_diffdrive.taps.msg_definitions import type_name
 
 _LIBRARY = 'motion_challenges unicycle_sim'
 _SIGNALS = {signal.SIGINT, signal.SIGTERM}

@@ -38,7 +38,7 @@ import pytest
 @pytest.fixture
 def sim_graph():
     """Yield a SimGraph (own context, isolated domain); close it and shut down afterwards."""
-    from sim_diffdrive.harness import SimGraph
+    from sim_diffdrive.testing.graph import SimGraph
     graph = SimGraph()
     try:
         yield graph

@@ -30,8 +30,8 @@ from geometry_msgs.msg import Twist
 from geometry_msgs.msg import TwistStamped
 from nav_msgs.msg import Odometry
 from nav_msgs.msg import Path
-from sim_diffdrive.odom_tf import namespaced_frame
-from sim_diffdrive.odom_tf import resolve_frame
+from sim_diffdrive.sim.odom_tf import namespaced_frame
+from sim_diffdrive.sim.odom_tf import resolve_frame
 
 _NS = 1_000_000_000
 # No ground robot commands more than this [m/s or rad/s]; larger values are refused as garbage.

@@ -26,8 +26,8 @@ import math
 
 import numpy as np
 from sim_diffdrive.angles import normalize_angle
-from sim_diffdrive.kinematics import SMALL_ANGLE
-from sim_diffdrive.kinematics import UnicycleModel
+from sim_diffdrive.sim.kinematics import SMALL_ANGLE
+from sim_diffdrive.sim.kinematics import UnicycleModel
 
 _TWO_PI = 2.0 * math.pi
 # Within this |angle| one turn up or down wraps exactly (a - 2 pi is exact for pi <= a <= 4 pi,
@@ -91,12 +91,14 @@ class Fleet:
     """
     N unicycles: poses and velocities in arrays, robot i also ``fleet.robots[i]``.
 
-    ``poses`` is a sequence of (x, y, yaw); ``limits`` are UnicycleModel's keyword arguments,
-    the same for every robot at start (``robots[i].set_limit`` changes one).
+    ``poses`` is a sequence of (x, y, yaw); ``names`` the robots' names ('' for a simulator's
+    one robot without a name); ``limits`` are UnicycleModel's keyword arguments, the same for
+    every robot at start (``robots[i].set_limit`` changes one).
     """
 
-    def __init__(self, poses, **limits):
+    def __init__(self, poses, names=None, **limits):
         n = len(poses)
+        self.names = list(names) if names is not None else [''] * n
         for name in ('x', 'y', 'yaw', 'linear', 'angular', 'target_linear', 'target_angular'):
             setattr(self, name, np.zeros(n))
         self.robots = [FleetRobot(self, i, x, y, yaw, **limits)

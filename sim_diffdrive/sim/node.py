@@ -35,18 +35,18 @@ from rclpy.qos import QoSProfile
 from rclpy.qos import ReliabilityPolicy
 from rclpy.time import Time
 from rosgraph_msgs.msg import Clock as ClockMsg
-from sim_diffdrive.fleet import Fleet
-from sim_diffdrive.lockstep_owner import LockstepOwner
-from sim_diffdrive.odom_tf import OdomTransform
+from sim_diffdrive.lockstep.owner import LockstepOwner
+from sim_diffdrive.lockstep.participant import take_part
 from sim_diffdrive.parameters import declare
 from sim_diffdrive.parameters import ParameterError
 from sim_diffdrive.parameters import Spec
-from sim_diffdrive.participant import take_part
-from sim_diffdrive.robot import covariance
-from sim_diffdrive.robot import NO_DEADLINE
-from sim_diffdrive.robot import NOT_YET
-from sim_diffdrive.robot import Robot
 from sim_diffdrive.runtime import run
+from sim_diffdrive.sim.fleet import Fleet
+from sim_diffdrive.sim.odom_tf import OdomTransform
+from sim_diffdrive.sim.robot import covariance
+from sim_diffdrive.sim.robot import NO_DEADLINE
+from sim_diffdrive.sim.robot import NOT_YET
+from sim_diffdrive.sim.robot import Robot
 from sim_diffdrive.taps import open_taps
 from sim_diffdrive.taps import TAP_PARAMETERS
 from std_srvs.srv import Empty
@@ -154,7 +154,7 @@ class UnicycleSim(Node):
                 f"parameter 'initial_poses' must hold x, y, yaw for each of the {len(names)} "
                 f'robot(s), {3 * len(names)} values; got {len(p.initial_poses)}')
         self.fleet = Fleet(
-            self._initial_poses(len(names)), max_linear_speed=p.max_linear_speed,
+            self._initial_poses(len(names)), names, max_linear_speed=p.max_linear_speed,
             max_angular_speed=p.max_angular_speed, max_linear_accel=p.max_linear_accel,
             max_angular_accel=p.max_angular_accel)
         self._step_ns = round(_NS / p.rate_hz)
@@ -374,6 +374,8 @@ class UnicycleSim(Node):
             self._tf.publish(*pose)
             if self.taps:
                 self.taps.write(self._tf.publisher.topic_name, self._tf.message(*pose), stamp_ns)
+        if self.taps:
+            self.taps.step(stamp_ns, fleet)
         if self._odom_count % self._path_every == 0:
             for robot in self.robots:
                 robot.record_path(stamp_ns)

@@ -33,13 +33,13 @@ warning, never the participant.  The simulator never gives itself up.
 
 import time
 
-from sim_diffdrive.handshake import Answer
-from sim_diffdrive.handshake import answer_topic
-from sim_diffdrive.handshake import roster_topic
-from sim_diffdrive.handshake import StepLedger
-from sim_diffdrive.participant import ANSWER_QOS
-from sim_diffdrive.participant import MessageCounter
-from sim_diffdrive.participant import ROSTER_QOS
+from sim_diffdrive.lockstep.handshake import Answer
+from sim_diffdrive.lockstep.handshake import answer_topic
+from sim_diffdrive.lockstep.handshake import roster_topic
+from sim_diffdrive.lockstep.handshake import StepLedger
+from sim_diffdrive.lockstep.participant import ANSWER_QOS
+from sim_diffdrive.lockstep.participant import MessageCounter
+from sim_diffdrive.lockstep.participant import ROSTER_QOS
 from std_msgs.msg import String
 
 _NS = 1_000_000_000

@@ -38,8 +38,8 @@ import time
 from nav_msgs.msg import Odometry
 from nav_msgs.msg import Path
 from rclpy.serialization import serialize_message
-from sim_diffdrive.msg_definitions import message_definition
-from sim_diffdrive.msg_definitions import type_name
+from sim_diffdrive.taps.msg_definitions import message_definition
+from sim_diffdrive.taps.msg_definitions import type_name
 
 DEFAULT_HOST = '127.0.0.1'
 SCENE_TOPIC = '/foxglove/robot'

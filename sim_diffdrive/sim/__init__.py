@@ -1,0 +1,20 @@
+# Copyright 2026 motion_challenges contributors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The simulator: its node, its robots, the fleet that owns their state, exact kinematics.
+
+The ``unicycle_sim`` node (node.py) and its clock modes, each robot's topics (robot.py), the
+fleet's arrays (fleet.py) and the unicycle model (kinematics.py).
+"""

@@ -1,0 +1,23 @@
+# Copyright 2026 motion_challenges contributors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Test robot code against the simulator.
+
+SimGraph (graph.py), Probe (probe.py), processes
+(processes.py) and the ``sim_graph`` pytest fixture (pytest_plugin.py).
+
+Import them from sim_diffdrive.harness.  This package's own import loads nothing, so pytest
+loads the plugin without rclpy.
+"""

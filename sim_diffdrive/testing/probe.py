@@ -1,0 +1,130 @@
+# Copyright 2026 motion_challenges contributors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+A node that stands in for a controller or a listener in tests, and what reads its messages.
+
+``Probe`` records odometry and sends Twist commands (or plays a script of them on sim-time
+ticks); the helpers read poses and speeds out of Odometry and build commands.
+"""
+
+import math
+import time
+
+from geometry_msgs.msg import Twist
+from nav_msgs.msg import Odometry
+from rclpy.node import Node
+from sim_diffdrive.angles import yaw_from_quaternion
+
+_NS = 1_000_000_000
+
+
+def pose_of(odom):
+    """Return (x, y, yaw) of an Odometry message."""
+    p = odom.pose.pose
+    return p.position.x, p.position.y, yaw_from_quaternion(
+        p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w)
+
+
+def twist(linear, angular):
+    """Return a Twist commanding linear.x [m/s] and angular.z [rad/s]."""
+    msg = Twist()
+    msg.linear.x = float(linear)
+    msg.angular.z = float(angular)
+    return msg
+
+
+def twist_of(odom):
+    """Return (linear.x, angular.z) of an Odometry message's twist."""
+    return odom.twist.twist.linear.x, odom.twist.twist.angular.z
+
+
+def is_moving(odom):
+    """Return whether odometry (None: none yet) shows the robot moving."""
+    return odom is not None and twist_of(odom) != (0.0, 0.0)
+
+
+def stamp_s(msg):
+    """Return a stamped message's header time in seconds."""
+    return msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+
+
+def angle_error(a, b):
+    """Return the absolute difference of two angles, wrapped to [0, pi] [rad]."""
+    return abs(math.remainder(a - b, 2.0 * math.pi))
+
+
+class Probe(Node):
+    """Record odometry and send Twist commands, or play a script of them on sim-time ticks."""
+
+    def __init__(self, name='probe', odom_topic='odom', cmd_topic='cmd_vel', listen_only=False,
+                 record_commands=False, **kwargs):
+        super().__init__(name, **kwargs)
+        self.odoms = []
+        self.odom_walls = []  # the monotonic wall time each odometry message arrived
+        self.commands = []  # with record_commands: (monotonic, time.time(), Twist) heard
+        self.create_subscription(Odometry, odom_topic, self._on_odom, 200)
+        # A listener only: a second publisher on cmd_vel would make the simulator warn.
+        self.cmd_pub = None if listen_only else self.create_publisher(Twist, cmd_topic, 10)
+        if record_commands:
+            self.create_subscription(Twist, cmd_topic, lambda msg: self.commands.append(
+                (time.monotonic(), time.time(), msg)), 200)
+        self._script = []
+        self._tick = None
+        self.script_started_at = None
+        self.script_done_at = None
+
+    @property
+    def odom(self):
+        """Return the latest odometry, or None."""
+        return self.odoms[-1] if self.odoms else None
+
+    def send(self, linear=0.0, angular=0.0):
+        self.cmd_pub.publish(twist(linear, angular))
+
+    def play(self, script, period=0.1):
+        """Play (linear, angular, ticks) steps on a sim-time timer, then send one zero Twist."""
+        self._script = [(v, w) for v, w, ticks in script for _ in range(ticks)]
+        self._script.append((0.0, 0.0))
+        self._tick = self.create_timer(period, self._on_tick)
+
+    @property
+    def playing(self):
+        return self.script_done_at is None
+
+    def _on_tick(self):
+        now = self.get_clock().now().nanoseconds
+        if now == 0:
+            return
+        if self.script_started_at is None:
+            self.script_started_at = now
+        self.send(*self._script.pop(0))
+        if not self._script:
+            self.script_done_at = now
+            self._tick.cancel()
+
+    def after(self, wall):
+        """Return the odometry messages that arrived at or after monotonic wall time wall."""
+        return [msg for received, msg in zip(self.odom_walls, self.odoms) if received >= wall]
+
+    def _on_odom(self, msg):
+        self.odom_walls.append(time.monotonic())
+        self.odoms.append(msg)
+
+    def odom_after(self, t_ns):
+        """Return the first odometry stamped at or after t_ns (sim time), or None."""
+        for odom in self.odoms:
+            if odom.header.stamp.sec * _NS + odom.header.stamp.nanosec >= t_ns:
+                return odom
+        return None
