@@ -22,8 +22,9 @@ with both parts per tick, on ``cmd_vel``, can stop after ``cycles`` and always s
 
 import math
 
-from motion_challenges.motion_node import rate_spec
+from motion_challenges.plans import circle_end
 from motion_challenges.plans import circle_plan
+from motion_challenges.specs import rate_spec
 from motion_challenges.timed_motion import TimedMotion
 from sim_diffdrive.parameters import Spec
 from sim_diffdrive.runtime import run
@@ -69,7 +70,7 @@ class CircleBackAndForth(TimedMotion):
         return command
 
     def goal_pose(self, start):
-        return start.x, start.y, start.yaw
+        return circle_end((start.x, start.y, start.yaw))
 
 
 def main(args=None):

@@ -80,9 +80,20 @@ COMMON_PARAMETERS = (
 )
 
 
-def rate_spec(default):
-    return Spec('rate_hz', default, 'Control rate [Hz] of the timer that publishes cmd_vel.',
-                low=0.0, high=1000.0, low_open=True)
+# How a motion's closing line starts when it reached its goal (closing_line finds it).
+DONE = 'Done in '
+
+
+def closing_line(output):
+    """Return a motion's closing line ('Done in ...') from its output, or its last error line."""
+    lines = output.splitlines()
+    for line in reversed(lines):
+        if DONE in line:
+            return line
+    for line in reversed(lines):
+        if '[ERROR]' in line or 'Error' in line:
+            return line
+    return lines[-1] if lines else ''
 
 
 class MotionState(str, enum.Enum):
@@ -385,7 +396,7 @@ class MotionNode(Node):
             end_odom = self.odom if fresh else None
             achieved = self.summary(end_odom)
             if end_odom is not None:
-                self.finish(EXIT_OK, f'Done in {sim_s:.3f} s ({wall_s:.3f} s wall): {achieved}')
+                self.finish(EXIT_OK, f'{DONE}{sim_s:.3f} s ({wall_s:.3f} s wall): {achieved}')
             elif not self.params.wait_for_odom:
                 self.finish(EXIT_OK, f'Sent the whole plan in {sim_s:.3f} s ({wall_s:.3f} s '
                                      f'wall) to a robot without odometry: {achieved}')

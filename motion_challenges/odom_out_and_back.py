@@ -26,8 +26,8 @@ import math
 from motion_challenges.controllers import Approach
 from motion_challenges.controllers import OutAndBack
 from motion_challenges.motion_node import MotionNode
-from motion_challenges.timed_out_and_back import expected_end
-from motion_challenges.timed_out_and_back import out_and_back_specs
+from motion_challenges.plans import out_and_back_end
+from motion_challenges.specs import out_and_back_specs
 from sim_diffdrive.parameters import Spec
 from sim_diffdrive.runtime import run
 
@@ -72,7 +72,8 @@ class OdomOutAndBack(MotionNode):
 
     def goal_pose(self, start):
         p = self.params
-        return expected_end(start, p.goal_distance, p.goal_angle, p.legs)
+        return out_and_back_end((start.x, start.y, start.yaw), p.goal_distance, p.goal_angle,
+                                p.legs)
 
 
 def main(args=None):

@@ -199,6 +199,26 @@ def out_and_back_plan(goal_distance, linear_speed, goal_angle, angular_speed, le
     return PiecewisePlan(leg * legs)
 
 
+def rotation_end(start, angle, clockwise):
+    """Return the pose (x, y, yaw) a turn by angle [rad] leads to from start (x, y, yaw)."""
+    x, y, yaw = start
+    return x, y, yaw - angle if clockwise else yaw + angle
+
+
+def circle_end(start):
+    """Return the pose circle_plan leads back to from start: start itself."""
+    return tuple(start)
+
+
+def out_and_back_end(start, goal_distance, goal_angle, legs):
+    """Return the pose (x, y, yaw) the legs lead to from start (the start itself for pi x 2)."""
+    x, y, yaw = start
+    for _ in range(legs):
+        x, y, yaw = integrate(x, y, yaw, goal_distance, 0.0, 1.0)
+        x, y, yaw = integrate(x, y, yaw, 0.0, goal_angle, 1.0)
+    return x, y, yaw
+
+
 def approach_speed(remaining, max_speed, min_speed, accel, period):
     """
     Return the speed for a closed-loop motion with remaining distance or angle to go.

@@ -25,13 +25,14 @@ import math
 import sys
 
 from motion_challenges.controllers import SpinController
-from motion_challenges.motion_node import rate_spec
+from motion_challenges.plans import rotation_end
 from motion_challenges.plans import rotation_plan
 from motion_challenges.prompts import ask_rotation
 from motion_challenges.prompts import InputEnded
 from motion_challenges.prompts import MAX_ANGLE_DEG
 from motion_challenges.prompts import MAX_ANGULAR_SPEED_DEG
 from motion_challenges.prompts import stream_writer
+from motion_challenges.specs import rate_spec
 from motion_challenges.timed_motion import TimedMotion
 from sim_diffdrive.parameters import Spec
 from sim_diffdrive.runtime import run
@@ -104,7 +105,7 @@ class RotateRobot(TimedMotion):
         return (None if angular is None else (0.0, angular)), turned
 
     def goal_pose(self, start):
-        return start.x, start.y, start.yaw + self.sign * self.goal
+        return rotation_end((start.x, start.y, start.yaw), self.goal, self.sign < 0)
 
     def summary(self, end_odom):
         goal_deg = self.sign * self.request.angle_deg

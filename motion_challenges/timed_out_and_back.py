@@ -23,36 +23,11 @@ so the robot ends where it started, facing the same way, without rbx1's tick rou
 
 import math
 
-from motion_challenges.motion_node import rate_spec
+from motion_challenges.plans import out_and_back_end
 from motion_challenges.plans import out_and_back_plan
+from motion_challenges.specs import out_and_back_specs
 from motion_challenges.timed_motion import TimedMotion
-from sim_diffdrive.parameters import Spec
 from sim_diffdrive.runtime import run
-from sim_diffdrive.sim.kinematics import integrate
-
-
-def out_and_back_specs(rate_hz):
-    """Parameters shared with odom_out_and_back."""
-    return (
-        Spec('goal_distance', 1.0, 'Distance of each straight leg [m].',
-             low=0.0, high=1000.0, low_open=True),
-        Spec('linear_speed', 0.2, 'Forward speed [m/s].', low=0.0, high=10.0, low_open=True),
-        Spec('angular_speed', 1.0, 'Turn rate [rad/s].', low=0.0, high=10.0, low_open=True),
-        Spec('goal_angle', math.pi, 'Angle of each turn [rad], counter-clockwise.',
-             low=0.0, high=100.0, low_open=True),
-        Spec('legs', 2, 'Number of drive-and-turn legs.', low=1, high=1000),
-        Spec('pause', 1.0, 'Pause after each stop [s].', low=0.0, high=3600.0),
-        rate_spec(rate_hz),
-    )
-
-
-def expected_end(start, goal_distance, goal_angle, legs):
-    """Return the pose (x, y, yaw) the legs lead to from start (the start itself for pi x 2)."""
-    x, y, yaw = start.x, start.y, start.yaw
-    for _ in range(legs):
-        x, y, yaw = integrate(x, y, yaw, goal_distance, 0.0, 1.0)
-        x, y, yaw = integrate(x, y, yaw, 0.0, goal_angle, 1.0)
-    return x, y, yaw
 
 
 class TimedOutAndBack(TimedMotion):
@@ -79,7 +54,8 @@ class TimedOutAndBack(TimedMotion):
 
     def goal_pose(self, start):
         p = self.params
-        return expected_end(start, p.goal_distance, p.goal_angle, p.legs)
+        return out_and_back_end((start.x, start.y, start.yaw), p.goal_distance, p.goal_angle,
+                                p.legs)
 
 
 def main(args=None):

@@ -29,7 +29,6 @@ from sim_diffdrive.testing.probe import Probe
 from sim_diffdrive.testing.probe import stamp_s
 from sim_diffdrive.testing.probe import twist
 from sim_diffdrive.testing.probe import twist_of
-from sim_diffdrive.testing.processes import closing_line
 from sim_diffdrive.testing.processes import Process
 from sim_diffdrive.testing.processes import ros_params
 from sim_diffdrive.testing.processes import start
@@ -37,7 +36,7 @@ from sim_diffdrive.testing.processes import start_python
 from sim_diffdrive.testing.processes import stop
 
 __all__ = [
-    'DOMAIN_VARIABLE', 'Probe', 'Process', 'SimGraph', 'angle_error', 'closing_line',
+    'DOMAIN_VARIABLE', 'Probe', 'Process', 'SimGraph', 'angle_error',
     'is_moving', 'isolated_domain_id', 'pose_of', 'ros_params', 'start', 'start_python', 'stop',
     'stamp_s', 'twist', 'twist_of',
 ]

@@ -208,10 +208,11 @@ class _LiveParameters:
     """
     The rclpy parameter callbacks that check, store and apply a node's live parameters.
 
-    rclpy checks a descriptor's range before any on-set callback, in its own words and without
-    open bounds, so the pre-set callback runs Spec.check first: a good value goes on converted,
-    a bad one is swapped for the current value (which passes rclpy's checks) and the on-set
-    callback then refuses that very Parameter with the Spec's words.
+    rclpy checks a descriptor's range (in its own words, without open bounds, and not for
+    arrays) before any on-set callback, so the Spec speaks first, in the pre-set callback: a
+    good value goes on converted (an integer for a float parameter becomes the float); a bad
+    one is noted with its refusal by name and replaced by the current value, which passes
+    rclpy's checks, and the on-set callback then refuses the set with the noted words.
     """
 
     def __init__(self, node, specs, values, on_change):
@@ -219,7 +220,7 @@ class _LiveParameters:
         self.specs = specs
         self.values = values
         self.on_change = on_change
-        self._refusals = {}  # id of a swapped-in Parameter -> (Parameter, the refusal)
+        self._refused = {}  # parameter name -> refusal, for the set under way
 
     def attach(self):
         node = self.node
@@ -229,7 +230,7 @@ class _LiveParameters:
         node.add_post_set_parameters_callback(self._apply)
 
     def _convert(self, parameters):
-        self._refusals.clear()
+        self._refused = {}
         converted = []
         for parameter in parameters:
             spec = self.specs.get(parameter.name)
@@ -237,21 +238,20 @@ class _LiveParameters:
                 try:
                     parameter = Parameter(spec.name, value=spec.check(parameter.value))
                 except ParameterError as error:
+                    self._refused[spec.name] = str(error)
                     current = self.node.get_parameter(spec.name)
                     parameter = Parameter(spec.name, current.type_, current.value)
-                    self._refusals[id(parameter)] = (parameter, str(error))
             converted.append(parameter)
         return converted
 
     def _refuse(self, parameters):
+        refused, self._refused = self._refused, {}
         for parameter in parameters:
-            swapped, reason = self._refusals.get(id(parameter), (None, None))
-            if swapped is parameter:
-                return SetParametersResult(successful=False, reason=reason)
+            if parameter.name in refused:
+                return SetParametersResult(successful=False, reason=refused[parameter.name])
         return SetParametersResult(successful=True)
 
     def _apply(self, parameters):
-        self._refusals.clear()
         for parameter in parameters:
             spec = self.specs.get(parameter.name)
             if spec is None:

@@ -215,7 +215,7 @@ def test_frames_set_live_show_in_the_next_odometry(graph, sim_params):
 
 def test_frames_set_live_in_a_namespace_are_resolved_as_at_start(graph):
     sim = graph.add_clock_owner(UnicycleSim(
-        namespace='/robot1', context=graph.context, parameter_overrides=[
+        stepped=True, namespace='/robot1', context=graph.context, parameter_overrides=[
             Parameter('publish_clock', value=True), Parameter('lockstep', value=False)]))
     probe = graph.probe(namespace='/robot1')
     params = Parameters(graph, probe, '/robot1/unicycle_sim')
@@ -246,8 +246,8 @@ def test_real_time_factor_set_live_paces_the_clock(graph):
     sim = graph.sim(stepped=False, publish_clock=True, real_time_factor=1.0)
     params = Parameters(graph, graph.odometry, '/unicycle_sim')
     assert params.set_param('real_time_factor', '10').successful
-    assert sim.step_budget_s == pytest.approx(0.002)
-    assert sim.clock_timer.timer_period_ns == 2_000_000
+    assert sim.clock.budget_s == pytest.approx(0.002)
+    assert sim.clock.timer.timer_period_ns == 2_000_000
     start_ns, start_wall = sim.now_ns(), time.monotonic()
     graph.spin_for(1.0)
     # At the old factor it would be about 1 s: well above that means the new pace is used.

@@ -26,21 +26,20 @@ from pathlib import Path
 import signal
 
 from motion_challenges.circle_back_and_forth import CircleBackAndForth
-from motion_challenges.controllers import Pose
 from motion_challenges.motion_fleet import build_fleet
 from motion_challenges.motion_fleet import fleet_plan
 from motion_challenges.motion_fleet import motion_classes
 from motion_challenges.motion_fleet import MotionFleet
+from motion_challenges.motion_node import closing_line
 from motion_challenges.odom_out_and_back import OdomOutAndBack
+from motion_challenges.plans import out_and_back_end
 from motion_challenges.prompts import RotationRequest
 from motion_challenges.rotate_robot import RotateRobot
-from motion_challenges.timed_out_and_back import expected_end
 from motion_challenges.timed_out_and_back import TimedOutAndBack
 import pytest
 import rclpy
 from rclpy.context import Context
 from sim_diffdrive.harness import angle_error
-from sim_diffdrive.harness import closing_line
 from sim_diffdrive.harness import is_moving
 from sim_diffdrive.harness import isolated_domain_id
 from sim_diffdrive.harness import pose_of
@@ -66,7 +65,7 @@ def end_of(motion, start):
     """Return where motion (with SHORT's parameters) leaves a robot that started at start."""
     x, y, yaw = start
     if motion in ('odom_out_and_back', 'timed_out_and_back'):
-        return expected_end(Pose(x, y, yaw), SHORT['goal_distance'], math.pi, SHORT['legs'])
+        return out_and_back_end((x, y, yaw), SHORT['goal_distance'], math.pi, SHORT['legs'])
     if motion == 'rotate_robot':
         return x, y, yaw - math.radians(SHORT['angle_deg'])
     return start  # circle_back_and_forth: out along the arc and back

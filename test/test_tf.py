@@ -105,8 +105,9 @@ def assert_equals_odometry(transform, odom):
 def namespaced_sim(graph, namespace, **params):
     """Start a stepped simulator in namespace (SimGraph.sim() builds it in the root one)."""
     params = {'publish_clock': True, 'lockstep': False, 'real_time_factor': 10.0, **params}
-    sim = UnicycleSim(namespace=namespace, context=graph.context, parameter_overrides=[
-        Parameter(name, value=value) for name, value in params.items()])
+    sim = UnicycleSim(stepped=True, namespace=namespace, context=graph.context,
+                      parameter_overrides=[Parameter(name, value=value)
+                                           for name, value in params.items()])
     return graph.add_clock_owner(sim)
 
 

@@ -16,6 +16,5 @@
 Simulated time across nodes and processes (described in docs/time.md).
 
 The handshake's messages (handshake.py, no ROS), the simulator's side (owner.py), a node's side
-(participant.py, ``take_part``), the one way both count messages (counter.py), and the
-in-process engine that SimGraph steps (engine.py).
+(participant.py, ``take_part``), and how both count messages (counter.py).
 """

@@ -33,12 +33,12 @@ warning, never the participant.  The simulator never gives itself up.
 
 import time
 
+from sim_diffdrive.lockstep.counter import MessageCounter
 from sim_diffdrive.lockstep.handshake import Answer
 from sim_diffdrive.lockstep.handshake import answer_topic
 from sim_diffdrive.lockstep.handshake import roster_topic
 from sim_diffdrive.lockstep.handshake import StepLedger
 from sim_diffdrive.lockstep.participant import ANSWER_QOS
-from sim_diffdrive.lockstep.participant import MessageCounter
 from sim_diffdrive.lockstep.participant import ROSTER_QOS
 from std_msgs.msg import String
 
@@ -52,9 +52,9 @@ RESEND_S = 0.01
 
 
 class LockstepOwner:
-    """Decide when the simulator ``sim`` (a UnicycleSim owning /clock) may step."""
+    """Decide when the simulator ``sim`` may step its ``clock`` (a sim.clock.LockstepClock)."""
 
-    def __init__(self, sim):
+    def __init__(self, sim, clock):
         """
         Listen for answers; call before the simulator creates its robots' subscriptions.
 
@@ -63,9 +63,10 @@ class LockstepOwner:
         take a lockstep owner for a free clock on a lossy link (Participant.owner_present).
         """
         self.sim = sim
+        self.clock = clock
         self._owner_id = sim.get_fully_qualified_name() + '#owner'
         self.ledger = StepLedger(self._owner_id)
-        self._answer_topic = answer_topic(sim.clock_topic)
+        self._answer_topic = answer_topic(clock.topic)
         sim.create_subscription(String, self._answer_topic, self._on_answer, ANSWER_QOS)
         self._waiting = None  # what the current step waits for; None: to be worked out
         self._announced = set()
@@ -76,11 +77,12 @@ class LockstepOwner:
     def start(self):
         """Count the simulator's own traffic from here on (once its robots exist); go."""
         sim = self.sim
-        self._roster_pub = sim.create_publisher(String, roster_topic(sim.clock_topic),
+        self._roster_pub = sim.create_publisher(String, roster_topic(self.clock.topic),
                                                 ROSTER_QOS)
         # The simulator's own traffic (cmd_vel heard, odom sent) is counted like a
         # participant's; its answer holds the counter's live dicts, so only its step changes.
-        counter = MessageCounter(sim, sim.clock_topic, self._on_news, timers=False, fixed=True)
+        counter = MessageCounter.of(sim, self.clock.topic, fixed=True)
+        counter.listeners.append(self._on_news)
         self._own_answer = Answer(self._owner_id, sim.get_fully_qualified_name(), sim.now_ns(),
                                   counter.sent, counter.heard, False, counter.sent_stamp,
                                   counter.heard_stamp)
@@ -97,17 +99,16 @@ class LockstepOwner:
     def try_step(self):
         """Step if the last step is settled and real_time_factor allows it."""
         sim = self.sim
-        if sim.clock_timer is None or sim.clock_timer.is_canceled():
-            return  # stepped from outside (the in-process harness)
+        clock = self.clock
         ledger = self.ledger
-        wall = sim.clock_wall
+        wall = clock.wall
         waited = time.monotonic() - wall
         if len(ledger.members) <= 1:
             self._publish_roster()
             # Freewheel until the first answer.
-            steps = min(int(waited / sim.step_budget_s), _MAX_CATCH_UP)
+            steps = min(int(waited / clock.budget_s), _MAX_CATCH_UP)
             for _ in range(steps):
-                sim.step()
+                clock.step()
             if steps:
                 self._keep_schedule(wall, steps)
             return
@@ -119,8 +120,8 @@ class LockstepOwner:
         if waiting:
             if waited <= sim.params.lockstep_timeout or not self._give_up(waiting):
                 return
-        if waited >= sim.step_budget_s:
-            sim.step()
+        if waited >= clock.budget_s:
+            clock.step()
             self._keep_schedule(wall, 1)
 
     def _keep_schedule(self, wall, steps):
@@ -132,10 +133,10 @@ class LockstepOwner:
         Far behind (the clock was held, or the machine is slower than real_time_factor), the
         schedule starts again from now rather than catching up in a burst.
         """
-        budget = self.sim.step_budget_s
+        budget = self.clock.budget_s
         scheduled = wall + steps * budget
         now = time.monotonic()
-        self.sim.clock_wall = scheduled if now - scheduled < budget else now
+        self.clock.wall = scheduled if now - scheduled < budget else now
 
     def _on_answer(self, msg):
         try:
@@ -164,11 +165,11 @@ class LockstepOwner:
         now = time.monotonic()
         # Only once the step has been held that long: a step that settles in time (nearly all)
         # sends /clock once.
-        resend = waiting and now - max(self.sim.clock_wall, self._resent_wall) >= RESEND_S
+        resend = waiting and now - max(self.clock.wall, self._resent_wall) >= RESEND_S
         if ledger.version == self._roster_version and not resend:
             return
         if resend:
-            self.sim.repeat_clock()
+            self.clock.repeat()
             self._resent_wall = now
         now_ns = self.sim.now_ns()
         roster = ledger.roster(self.sim.get_fully_qualified_name(), now_ns,

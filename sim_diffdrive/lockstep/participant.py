@@ -18,8 +18,8 @@ Take part in the simulator's lockstep: ``take_part(node)`` is the one call a nod
 The node must run on simulated time (``use_sim_time``).  From then on the simulator that owns
 ``/clock`` does not advance past a step until this node has run everything due at that time
 and the messages it published have been handled by the simulator (see handshake.py).  The
-node's subscription and timer callbacks and its publishers are counted by wrapping them, so
-the node's code does not change; entities created later are picked up after each callback.
+node's subscription and timer callbacks and its publishers are counted by its MessageCounter
+(counter.py), so the node's code does not change.
 """
 
 import time
@@ -32,9 +32,9 @@ from rclpy.qos import DurabilityPolicy
 from rclpy.qos import QoSProfile
 from rclpy.qos import ReliabilityPolicy
 from rosgraph_msgs.msg import Clock as ClockMsg
+from sim_diffdrive.lockstep.counter import MessageCounter
 from sim_diffdrive.lockstep.handshake import Answer
 from sim_diffdrive.lockstep.handshake import answer_topic
-from sim_diffdrive.lockstep.handshake import ignored_topics
 from sim_diffdrive.lockstep.handshake import Roster
 from sim_diffdrive.lockstep.handshake import roster_topic
 from std_msgs.msg import String
@@ -43,116 +43,6 @@ _NS = 1_000_000_000
 ANSWER_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
 ROSTER_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
-
-
-class MessageCounter:
-    """
-    Count what a node publishes and handles on its topics by wrapping its entities.
-
-    ``on_callback`` is called after every wrapped subscription or timer callback; with
-    ``timers`` false the node's timers are left alone (a clock owner's timers are its own).
-    Entities the node creates later are wrapped after its next callback, unless ``fixed``
-    says it creates none (a simulator with hundreds of robots need not look each time).
-    """
-
-    def __init__(self, node, clock_topic, on_callback=None, timers=True, fixed=False):
-        self.node = node
-        self._timers = timers
-        self._fixed = fixed
-        self._ignored = ignored_topics(clock_topic)
-        self.sent = {}
-        self.heard = {}
-        # The highest header stamp [ns] published / handled per topic: a foreign node's stale
-        # or zero stamp never lowers what was heard.
-        self.sent_stamp = {}
-        self.heard_stamp = {}
-        self.clock_ns = None
-        self.clock_messages = 0  # /clock messages handled, repeats included
-        self._on_callback = on_callback
-        self.wrap_new()
-
-    def wrap_new(self):
-        """Wrap the node's entities that are not wrapped yet (cheap when there are none)."""
-        node = self.node
-        for sub in node.subscriptions:
-            if not getattr(sub, '_lockstep_counter', None):
-                topic = sub.topic_name
-                if sub.msg_type is ClockMsg:
-                    sub.callback = self._clock_callback(sub.callback)
-                elif topic not in self._ignored:
-                    self.heard.setdefault(topic, 0)
-                    sub.callback = self._heard_callback(sub.callback, topic)
-                sub._lockstep_counter = self
-        for timer in node.timers if self._timers else ():
-            if not getattr(timer, '_lockstep_counter', None):
-                timer.callback = self._timer_callback(timer)
-                timer._lockstep_counter = self
-        for pub in node.publishers:
-            if not getattr(pub, '_lockstep_counter', None):
-                if pub.topic_name not in self._ignored:
-                    self.sent.setdefault(pub.topic_name, 0)
-                    pub.publish = self._counted_publish(pub.publish, pub.topic_name)
-                pub._lockstep_counter = self
-
-    def _after(self):
-        if not self._fixed:
-            self.wrap_new()
-        if self._on_callback is not None:
-            self._on_callback()
-
-    def _clock_callback(self, callback):
-        def counted(msg):
-            callback(msg)
-            self.clock_ns = msg.clock.sec * _NS + msg.clock.nanosec
-            self.clock_messages += 1
-            self._after()
-        return counted
-
-    def _heard_callback(self, callback, topic):
-        def counted(*args):
-            self.heard[topic] += 1
-            header = getattr(args[0], 'header', None)
-            if header is not None:
-                stamp = header.stamp.sec * _NS + header.stamp.nanosec
-                if stamp > self.heard_stamp.get(topic, -1):
-                    self.heard_stamp[topic] = stamp
-            callback(*args)
-            self._after()
-        return counted
-
-    def _timer_callback(self, timer):
-        callback = timer.callback
-        if timer.clock.clock_type != ClockType.ROS_TIME:
-            def counted(*args):
-                callback(*args)
-                self._after()
-            return counted
-        fired_at = [None]
-
-        def once_per_clock_time(*args):
-            # rclpy's EventsExecutor can queue a timer's event again before running the first
-            # (rclcpp #2771 has the same bug), most often on a loaded machine: the callback then
-            # runs several times at one simulated time, and each run moves the timer a period
-            # further, so later periods are skipped.  Run it once per time; restart the period.
-            now_ns = timer.clock.now().nanoseconds
-            if fired_at[0] == now_ns:
-                timer.reset()
-                return
-            fired_at[0] = now_ns
-            callback(*args)
-            self._after()
-        return once_per_clock_time
-
-    def _counted_publish(self, publish, topic):
-        def counted(msg):
-            self.sent[topic] += 1
-            header = getattr(msg, 'header', None)
-            if header is not None:
-                stamp = header.stamp.sec * _NS + header.stamp.nanosec
-                if stamp > self.sent_stamp.get(topic, -1):
-                    self.sent_stamp[topic] = stamp
-            publish(msg)
-        return counted
 
 
 class Participant:
@@ -180,7 +70,8 @@ class Participant:
         self._publisher = node.create_publisher(String, self._answer_topic, ANSWER_QOS)
         node.create_subscription(String, roster_topic(clock_topic), self._on_roster,
                                  ROSTER_QOS)
-        self.counter = MessageCounter(node, clock_topic, self._answer_if_settled)
+        self.counter = MessageCounter.of(node, clock_topic, timers=True)
+        self.counter.listeners.append(self._answer_if_settled)
 
     @property
     def owner_present(self):

@@ -13,15 +13,18 @@
 # limitations under the License.
 
 """
-Many unicycles in numpy arrays, advanced in one step (no ROS imports).
+Every robot of the simulator in numpy arrays, advanced in one step (no ROS imports).
 
+The fleet owns each robot's state: pose and velocities, the command it follows, the time its
+pose is integrated up to, its cmd_vel deadline and the stamped commands it holds for later.
 ``integrate_all`` is ``kinematics.integrate`` on arrays: the same operations in the same order,
 element by element, so a robot advanced with the others ends bit-identical to one advanced
 alone.  Each robot of a Fleet is also a ``UnicycleModel`` (a ``FleetRobot`` whose pose and
-velocities live in the fleet's arrays), so commands, limits and the acceleration ramp are the
-single-robot code; only a robot that ramps is advanced on its own.
+velocities are views into the fleet's arrays), so commands, limits and the acceleration ramp
+are the single-robot code; only a robot that ramps is advanced on its own.
 """
 
+import bisect
 import math
 
 import numpy as np
@@ -29,7 +32,12 @@ from sim_diffdrive.angles import normalize_angle
 from sim_diffdrive.sim.kinematics import SMALL_ANGLE
 from sim_diffdrive.sim.kinematics import UnicycleModel
 
+_NS = 1_000_000_000
 _TWO_PI = 2.0 * math.pi
+# In Fleet.deadline_ns: no cmd_vel timeout pending.
+NO_DEADLINE = 2 ** 63 - 1
+# In Fleet.integrated_ns: not integrated yet.
+NOT_YET = -1
 # Within this |angle| one turn up or down wraps exactly (a - 2 pi is exact for pi <= a <= 4 pi,
 # Sterbenz); beyond it, math.remainder does it.  6 < 3 pi, so at most one turn is needed.
 _ONE_TURN_WRAP = 6.0
@@ -89,18 +97,30 @@ class FleetRobot(UnicycleModel):
 
 class Fleet:
     """
-    N unicycles: poses and velocities in arrays, robot i also ``fleet.robots[i]``.
+    N unicycles: their state in arrays, robot i also ``fleet.robots[i]``.
 
     ``poses`` is a sequence of (x, y, yaw); ``names`` the robots' names ('' for a simulator's
-    one robot without a name); ``limits`` are UnicycleModel's keyword arguments, the same for
-    every robot at start (``robots[i].set_limit`` changes one).
+    one robot without a name); ``timeout_ns`` the cmd_vel timeout (0: none); ``limits`` are
+    UnicycleModel's keyword arguments, the same for every robot at start
+    (``robots[i].set_limit`` changes one).  ``on_timeout(i)`` is called when robot i is
+    stopped because its commands stopped coming.
     """
 
-    def __init__(self, poses, names=None, **limits):
+    def __init__(self, poses, *, names=None, timeout_ns=0, on_timeout=None, **limits):
         n = len(poses)
         self.names = list(names) if names is not None else [''] * n
         for name in ('x', 'y', 'yaw', 'linear', 'angular', 'target_linear', 'target_angular'):
             setattr(self, name, np.zeros(n))
+        # The time each pose is integrated up to, each cmd_vel deadline, who holds early
+        # commands: arrays, so one numpy step finds who has something to do on the way.
+        self.integrated_ns = np.full(n, NOT_YET, dtype=np.int64)
+        self.deadline_ns = np.full(n, NO_DEADLINE, dtype=np.int64)
+        self.has_early = np.zeros(n, dtype=bool)
+        self.last_command_ns = [None] * n
+        # Stamped commands ahead of the clock, (stamp_ns, linear, angular) in stamp order.
+        self.early = [[] for _ in range(n)]
+        self.timeout_ns = timeout_ns
+        self.on_timeout = on_timeout
         self.robots = [FleetRobot(self, i, x, y, yaw, **limits)
                        for i, (x, y, yaw) in enumerate(poses)]
 
@@ -115,6 +135,97 @@ class Fleet:
         """Return a boolean array: which robots move or are commanded to."""
         return ((self.linear != 0.0) | (self.angular != 0.0)
                 | (self.target_linear != 0.0) | (self.target_angular != 0.0))
+
+    # -- commands and time ------------------------------------------------------------------
+
+    def command(self, i, linear, angular, at_ns):
+        """Robot i follows (linear, angular) from at_ns on (integrate it up to at_ns first)."""
+        self.robots[i].command(linear, angular)
+        self._set_last_command(i, at_ns)
+
+    def hold(self, i, stamp_ns, linear, angular):
+        """Keep a command stamped ahead of the clock for robot i; it applies at its stamp."""
+        bisect.insort(self.early[i], (stamp_ns, linear, angular))
+        self.has_early[i] = True
+
+    def set_timeout(self, timeout_ns):
+        """Use a new cmd_vel timeout [ns] (0: none) for every robot, from its last command."""
+        self.timeout_ns = timeout_ns
+        for i in range(len(self.robots)):
+            self._set_last_command(i, self.last_command_ns[i])
+
+    def reset(self, i, x, y, yaw):
+        """Put robot i back at (x, y, yaw), at rest; forget its commands."""
+        self.robots[i].reset(x, y, yaw)
+        self._set_last_command(i, None)
+        self.early[i].clear()
+        self.has_early[i] = False
+
+    def advance_to(self, now_ns):
+        """
+        Integrate every robot up to now_ns.
+
+        One numpy step for all but the robots with a cmd_vel timeout, an early command or a
+        clock jump on the way, which go one by one.
+        """
+        integrated = self.integrated_ns
+        special = ((self.deadline_ns <= now_ns) | self.has_early | (integrated > now_ns)
+                   | (integrated == NOT_YET))
+        for i in np.flatnonzero(special).tolist():
+            self.advance_robot_to(i, now_ns)
+        behind = integrated < now_ns
+        if behind.all():
+            self.advance((now_ns - integrated) / _NS)
+            integrated[:] = now_ns
+        elif behind.any():
+            index = np.flatnonzero(behind)
+            self.advance((now_ns - integrated[index]) / _NS, index)
+            integrated[index] = now_ns
+
+    def advance_robot_to(self, i, now_ns):
+        """Integrate robot i up to now_ns, applying its early commands at their stamps."""
+        early = self.early[i]
+        integrated = int(self.integrated_ns[i])
+        if integrated != NOT_YET and now_ns < integrated:
+            early.clear()  # the clock jumped back: they were meant for a time that is gone
+        while early and early[0][0] <= now_ns:
+            stamp_ns, linear, angular = early.pop(0)
+            self._integrate_robot_to(i, stamp_ns)
+            self.command(i, linear, angular, stamp_ns)
+        self.has_early[i] = bool(early)
+        self._integrate_robot_to(i, now_ns)
+
+    def _integrate_robot_to(self, i, now_ns):
+        """Integrate robot i up to now_ns, stopping it at its cmd_vel timeout on the way."""
+        integrated = int(self.integrated_ns[i])
+        last = self.last_command_ns[i]
+        if integrated == NOT_YET or now_ns < integrated:
+            # First call, or the clock jumped back (e.g. a replayed /clock): restart from here,
+            # and count the cmd_vel timeout from here too, not from a time that is now ahead.
+            self.integrated_ns[i] = now_ns
+            if last is not None:
+                self._set_last_command(i, min(last, now_ns))
+            return
+        robot = self.robots[i]
+        deadline = int(self.deadline_ns[i])
+        if deadline <= now_ns:
+            if robot.target_linear or robot.target_angular or robot.linear or robot.angular:
+                robot.advance(max(0, deadline - integrated) / _NS)
+                integrated = max(integrated, deadline)
+                robot.command(0.0, 0.0)
+                if self.on_timeout is not None:
+                    self.on_timeout(i)
+            # At rest, a passed deadline changes nothing until the next command.
+            self._set_last_command(i, None)
+        robot.advance((now_ns - integrated) / _NS)
+        self.integrated_ns[i] = now_ns
+
+    def _set_last_command(self, i, at_ns):
+        self.last_command_ns[i] = at_ns
+        self.deadline_ns[i] = (NO_DEADLINE if at_ns is None or self.timeout_ns <= 0
+                               else at_ns + self.timeout_ns)
+
+    # -- kinematics -------------------------------------------------------------------------
 
     def advance(self, dt, which=None):
         """

@@ -18,49 +18,33 @@ The ``unicycle_sim`` node: Twist in on ``cmd_vel``, Odometry out on ``odom``; on
 The pose is integrated exactly and piecewise: brought up to the moment each command arrives
 before the command takes effect, so accuracy does not depend on ``rate_hz``.  With ``robots``
 each named robot has its own topics and frames under ``<name>/`` (robot.py), and every step
-moves all robots at once with numpy (fleet.py), bit-identical to one robot alone.  With
-``publish_clock`` the node owns time: it steps a simulated clock by 1/``rate_hz`` seconds per
-step, ``real_time_factor`` times faster than the wall clock, and publishes it on ``/clock``
-for nodes that run with ``use_sim_time``.
+moves all robots at once with numpy (fleet.py, which owns every robot's state),
+bit-identical to one robot alone.  With ``publish_clock`` the node owns time: it steps a
+simulated clock by 1/``rate_hz`` seconds per step, up to ``real_time_factor`` times faster
+than the wall clock, and publishes it on ``/clock`` for nodes that run with ``use_sim_time``
+(clock.py holds the four ways of keeping time).
 """
 
 import re
-import time
 
 import numpy as np
-from rclpy.clock import Clock
-from rclpy.clock import ClockType
 from rclpy.node import Node
-from rclpy.qos import QoSProfile
-from rclpy.qos import ReliabilityPolicy
 from rclpy.time import Time
-from rosgraph_msgs.msg import Clock as ClockMsg
-from sim_diffdrive.lockstep.owner import LockstepOwner
-from sim_diffdrive.lockstep.participant import take_part
 from sim_diffdrive.parameters import declare
 from sim_diffdrive.parameters import ParameterError
 from sim_diffdrive.parameters import Spec
 from sim_diffdrive.runtime import run
+from sim_diffdrive.sim.clock import make_clock
 from sim_diffdrive.sim.fleet import Fleet
 from sim_diffdrive.sim.odom_tf import OdomTransform
 from sim_diffdrive.sim.robot import covariance
-from sim_diffdrive.sim.robot import NO_DEADLINE
-from sim_diffdrive.sim.robot import NOT_YET
 from sim_diffdrive.sim.robot import Robot
 from sim_diffdrive.taps import open_taps
 from sim_diffdrive.taps import TAP_PARAMETERS
 from std_srvs.srv import Empty
 
 _NS = 1_000_000_000
-# Clock pacing: wait this many times the graph's recent reaction time between steps; the
-# remembered reaction time shrinks by this factor per step, so a spike is forgotten in a
-# second of simulated time and an idle graph runs at the full real_time_factor.
-_PACING_MARGIN = 2.0
-_REACTION_DECAY = 0.98
 _POSITION_LIMIT = 1e6
-# In lockstep the clock timer only paces and watches for laggards (answers drive the steps),
-# so it need not fire more often than this [s]; without members it catches up in bursts.
-_LOCKSTEP_TICK_S = 0.0005
 # A robot name: relative ROS name tokens (robot1, team_a/robot1).
 _ROBOT_NAME = re.compile(r'[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)*')
 
@@ -140,7 +124,13 @@ def robot_names(robots):
 class UnicycleSim(Node):
     """Simulate one unicycle robot, or one per name in ``robots`` (see the module docstring)."""
 
-    def __init__(self, **kwargs):
+    def __init__(self, stepped=False, **kwargs):
+        """
+        Build the simulator; kwargs go to rclpy's Node (context, parameter_overrides, ...).
+
+        stepped: with publish_clock, take no step of its own; the caller calls
+        ``self.clock.step()`` (SimGraph does, once the graph has settled).
+        """
         super().__init__('unicycle_sim', **kwargs)
         self.params = declare(self, PARAMETERS, on_change=self._on_parameter)
         p = self.params
@@ -154,62 +144,22 @@ class UnicycleSim(Node):
                 f"parameter 'initial_poses' must hold x, y, yaw for each of the {len(names)} "
                 f'robot(s), {3 * len(names)} values; got {len(p.initial_poses)}')
         self.fleet = Fleet(
-            self._initial_poses(len(names)), names, max_linear_speed=p.max_linear_speed,
-            max_angular_speed=p.max_angular_speed, max_linear_accel=p.max_linear_accel,
-            max_angular_accel=p.max_angular_accel)
-        self._step_ns = round(_NS / p.rate_hz)
-        self.timeout_ns = round(p.cmd_vel_timeout * _NS)
-        # Per robot, in arrays so one numpy step finds who has something to do on the way:
-        # the time each pose is integrated up to, its cmd_vel deadline, early commands held.
-        self.integrated_ns = np.full(len(names), NOT_YET, dtype=np.int64)
-        self.deadline_ns = np.full(len(names), NO_DEADLINE, dtype=np.int64)
-        self.has_early = np.zeros(len(names), dtype=bool)
-        # Simulated time in integer nanoseconds so many steps add up without rounding drift.
-        self._sim_ns = 0
-        self.lockstep = None
-
-        self.lockstep_owner = None
-        self._clock_pub = None
-        if p.publish_clock:
-            self._clock_pub = self.create_publisher(
-                ClockMsg, '/clock', QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE))
-            self.clock_topic = self._clock_pub.topic_name
-            if p.lockstep:
-                # Before the robots' cmd_vel subscriptions: see LockstepOwner.__init__.
-                self.lockstep_owner = LockstepOwner(self)
-
-        # Where else the simulator's traffic goes (an MCAP file, Foxglove): see taps.py.
+            self._initial_poses(len(names)), names=names,
+            timeout_ns=round(p.cmd_vel_timeout * _NS), on_timeout=self._on_timeout,
+            max_linear_speed=p.max_linear_speed, max_angular_speed=p.max_angular_speed,
+            max_linear_accel=p.max_linear_accel, max_angular_accel=p.max_angular_accel)
+        self.step_ns = round(_NS / p.rate_hz)
+        self.clock = make_clock(self, stepped)
+        # Where else the simulator's traffic goes (an MCAP file, Foxglove): see taps/.
         self.taps = open_taps(self)
-        self.robots = [Robot(self, i, name, model)
-                       for i, (name, model) in enumerate(zip(names, self.fleet.robots))]
+        self.robots = [Robot(self, i, name) for i, name in enumerate(names)]
         self._tf = (OdomTransform(self, [robot.odom_msg for robot in self.robots])
                     if p.publish_tf else None)
         self._path_every = max(1, round(p.rate_hz / p.path_rate_hz))
         self._odom_count = 0
         self._check_every = max(1, round(p.rate_hz))
         self.create_service(Empty, '~/reset', self._on_reset)
-
-        if p.publish_clock:
-            self.integrated_ns[:] = 0
-            self.clock_wall = time.monotonic()
-            self._reaction_s = 0.0
-            self._answered = True
-            # Pacing never makes simulated time slower than real time.
-            self._max_reaction_s = self._step_ns / _NS / _PACING_MARGIN
-            self.step_budget_s = self._step_ns / _NS / p.real_time_factor
-            period_s = self.step_budget_s
-            if self.lockstep_owner is not None:
-                self.lockstep_owner.start()
-                period_s = max(period_s, _LOCKSTEP_TICK_S)
-            self.clock_timer = self.create_timer(
-                period_s, self._on_clock_timer, clock=Clock(clock_type=ClockType.STEADY_TIME))
-            self._publish_clock()
-        else:
-            self.clock_timer = None
-            self.create_timer(self._step_ns / _NS, self._on_odom_timer)
-            if self.get_parameter('use_sim_time').value:
-                # Another simulator owns the clock: take part, so it waits for this robot.
-                self.lockstep = take_part(self)
+        self.clock.start()
         where = (f"{len(names)} robots ({', '.join(names)})" if p.robots else
                  f'Unicycle at ({p.initial_x:.3f}, {p.initial_y:.3f}, {p.initial_yaw:.3f} rad)')
         self.get_logger().info(
@@ -234,78 +184,16 @@ class UnicycleSim(Node):
 
     def now_ns(self):
         """Return the current simulated time in nanoseconds."""
-        if self._clock_pub is not None:
-            return self._sim_ns
-        return self.get_clock().now().nanoseconds
+        return self.clock.now_ns()
 
     def advance_all(self, now_ns):
-        """
-        Integrate every robot up to now_ns.
+        """Integrate every robot up to now_ns."""
+        self.fleet.advance_to(now_ns)
 
-        One numpy step for all but the robots with a cmd_vel timeout, an early command or a
-        clock jump on the way, which go one by one.
-        """
-        integrated = self.integrated_ns
-        special = ((self.deadline_ns <= now_ns) | self.has_early | (integrated > now_ns)
-                   | (integrated == NOT_YET))
-        for i in np.flatnonzero(special).tolist():
-            self.robots[i].advance_to(now_ns)
-        behind = integrated < now_ns
-        if behind.all():
-            self.fleet.advance((now_ns - integrated) / _NS)
-            integrated[:] = now_ns
-        elif behind.any():
-            index = np.flatnonzero(behind)
-            self.fleet.advance((now_ns - integrated[index]) / _NS, index)
-            integrated[index] = now_ns
-
-    def _on_clock_timer(self):
-        if self.lockstep_owner is not None:
-            self.lockstep_owner.try_step()
-            return
-        # real_time_factor is an upper bound: a step waits until the graph has had a few times
-        # its recent reaction time to answer the previous one, so that a command lands on the
-        # step it was sent for even when the machine is loaded.
-        if time.monotonic() - self.clock_wall >= _PACING_MARGIN * self._reaction_s:
-            self._reaction_s *= _REACTION_DECAY
-            self.step()
-
-    def step(self):
-        """Advance simulated time by one step and publish /clock and odometry."""
-        if self.lockstep_owner is not None:
-            self.lockstep_owner.next_step(self._sim_ns + self._step_ns)
-        self._sim_ns += self._step_ns
-        self.advance_all(self._sim_ns)
-        self._publish_clock()
-        self._publish_odom()
-        self.clock_wall = time.monotonic()
-        self._answered = False
-
-    def _on_odom_timer(self):
-        self.advance_all(self.now_ns())
-        self._publish_odom()
-
-    def _publish_clock(self):
-        msg = ClockMsg()
-        msg.clock = Time(nanoseconds=self._sim_ns).to_msg()
-        self._clock_msg = msg
-        self._clock_pub.publish(msg)
-        if self.taps:
-            self.taps.write(self._clock_pub.topic_name, msg, self._sim_ns)
-
-    def repeat_clock(self):
-        """Publish the current /clock again, for a participant that may have lost it."""
-        self._clock_pub.publish(self._clock_msg)
-
-    def command_arrived(self):
-        """Note a robot's command: with a free clock, the first after a step answers it."""
-        if self._clock_pub is not None and not self._answered:
-            # Only the first command after a step answers it: commands from a publisher that
-            # does not follow the clock (teleop, a second controller, a flood) arrive at any
-            # time, and counting each would double the wait every step until time stood still.
-            self._answered = True
-            reaction_s = min(time.monotonic() - self.clock_wall, self._max_reaction_s)
-            self._reaction_s = max(reaction_s, self._reaction_s)
+    def _on_timeout(self, index):
+        self.get_logger().warning(
+            f'{self.robots[index].label}No cmd_vel for {self.params.cmd_vel_timeout:g} s: '
+            'stopping the robot')
 
     # -- parameters and reset ---------------------------------------------------------------
 
@@ -314,9 +202,7 @@ class UnicycleSim(Node):
         self.advance_all(self.now_ns())  # up to now, the old value held
         robots = self.robots
         if name == 'cmd_vel_timeout':
-            self.timeout_ns = round(value * _NS)
-            for robot in robots:
-                robot.update_deadline()
+            self.fleet.set_timeout(round(value * _NS))
         elif name in ('max_linear_speed', 'max_angular_speed', 'max_linear_accel',
                       'max_angular_accel'):
             for robot in robots:
@@ -331,14 +217,8 @@ class UnicycleSim(Node):
                 robot.set_frame(name, value)
             if self._tf is not None:
                 self._tf.set_frames()
-        elif name == 'real_time_factor' and self.clock_timer is not None:
-            self.step_budget_s = self._step_ns / _NS / value
-            period_s = self.step_budget_s
-            if self.lockstep_owner is not None:
-                period_s = max(period_s, _LOCKSTEP_TICK_S)
-            self.clock_timer.timer_period_ns = round(period_s * _NS)
-            if not self.clock_timer.is_canceled():  # (the harness steps it instead)
-                self.clock_timer.reset()
+        elif name == 'real_time_factor':
+            self.clock.set_real_time_factor(value)
         elif name == 'path_length':
             for robot in robots:
                 robot.path.resize(value)  # keeps the newest
@@ -354,15 +234,15 @@ class UnicycleSim(Node):
         self.get_logger().info(
             'Reset every robot to its initial pose' if self.params.robots
             else 'Reset to the initial pose')
-        self._publish_odom()
+        self.publish_odom()
         return response
 
     # -- odometry ---------------------------------------------------------------------------
 
-    def _publish_odom(self):
+    def publish_odom(self):
         """Publish every robot's odometry (and one /tf message with all of them)."""
         fleet = self.fleet
-        stamp_ns = int(self.integrated_ns.max())
+        stamp_ns = int(fleet.integrated_ns.max())
         stamp = Time(nanoseconds=stamp_ns).to_msg()
         half = 0.5 * fleet.yaw
         qz, qw = np.sin(half), np.cos(half)  # quaternion_from_yaw, for every robot

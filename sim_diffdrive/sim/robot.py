@@ -13,16 +13,16 @@
 # limitations under the License.
 
 """
-One robot of ``unicycle_sim``: its topics, frames, commands, cmd_vel timeout and warnings.
+One robot of ``unicycle_sim``: its topics, frames, messages and warnings.
 
-The simulator (sim_node.py) keeps time and steps every robot at once (fleet.py); a Robot is
-what is each robot's own, as a turtle is in turtlesim: ``cmd_vel`` in, ``odom`` and ``path``
-out (under ``<name>/`` when the simulator has ``robots``), frames ``<name>/odom`` ->
-``<name>/base_footprint``, and the piecewise integration at each command's arrival, so a
-command takes effect at the moment it arrives, whatever the step.
+The simulator (node.py) keeps time; the fleet (fleet.py) holds every robot's state and steps
+them all at once.  A Robot is what is each robot's own on the ROS side, as a turtle is in
+turtlesim: ``cmd_vel`` in, ``odom`` and ``path`` out (under ``<name>/`` when the simulator has
+``robots``), frames ``<name>/odom`` -> ``<name>/base_footprint``.  A command is checked here
+and handed to the fleet at the moment it arrives (the robot integrated up to then first), so
+it takes effect then, whatever the step.
 """
 
-import bisect
 from collections import deque
 
 from geometry_msgs.msg import PoseStamped
@@ -36,10 +36,6 @@ from sim_diffdrive.sim.odom_tf import resolve_frame
 _NS = 1_000_000_000
 # No ground robot commands more than this [m/s or rad/s]; larger values are refused as garbage.
 COMMAND_LIMIT = 1e4
-# In Simulator.deadline_ns: no cmd_vel timeout pending.
-NO_DEADLINE = 2 ** 63 - 1
-# In Simulator.integrated_ns: not integrated yet.
-NOT_YET = -1
 
 
 def covariance(diagonal):
@@ -52,23 +48,18 @@ def covariance(diagonal):
 
 class Robot:
     """
-    Robot number ``index`` of the simulator ``sim``, moved by ``model`` (a FleetRobot).
+    Robot number ``index`` of the simulator ``sim``: its topics and messages.
 
-    ``name`` is '' for the simulator's one robot in its own namespace.  The simulator holds
-    this robot's integration time and cmd_vel deadline in arrays (``integrated_ns``,
-    ``deadline_ns``), so that it can tell in one numpy step which robots have something to do
-    on the way to the next step.
+    ``name`` is '' for the simulator's one robot in its own namespace.  Its state is row
+    ``index`` of ``sim.fleet``; ``model`` is that row as a UnicycleModel.
     """
 
-    def __init__(self, sim, index, name, model):
+    def __init__(self, sim, index, name):
         self.sim = sim
+        self.fleet = sim.fleet
         self.index = index
         self.name = name
-        self.model = model
-        self.last_cmd_ns = None
-        # On another simulator's clock: stamped commands that are ahead of this node's clock
-        # (sent for a step whose /clock has not reached us yet), as (stamp_ns, linear, angular).
-        self.early_commands = []
+        self.model = sim.fleet.robots[index]
         self._warned_publishers = False
         prefix = f'{name}/' if name else ''
         self.label = f'{name}: ' if name else ''
@@ -92,78 +83,9 @@ class Robot:
         self._fill = (self.odom_msg.header, pose.position, pose.orientation, twist.linear,
                       twist.angular)
 
-    # -- state in the simulator's arrays ----------------------------------------------------
-
-    @property
-    def integrated_ns(self):
-        """Return the time the pose is integrated up to [ns], or None before the first time."""
-        value = int(self.sim.integrated_ns[self.index])
-        return None if value == NOT_YET else value
-
-    @integrated_ns.setter
-    def integrated_ns(self, value):
-        self.sim.integrated_ns[self.index] = NOT_YET if value is None else value
-
-    def _set_last_command(self, at_ns):
-        self.last_cmd_ns = at_ns
-        self.update_deadline()
-
-    def update_deadline(self):
-        """Put this robot's cmd_vel deadline (or none) where the simulator's step sees it."""
-        timeout_ns = self.sim.timeout_ns
-        self.sim.deadline_ns[self.index] = (
-            NO_DEADLINE if self.last_cmd_ns is None or timeout_ns <= 0
-            else self.last_cmd_ns + timeout_ns)
-
-    # -- integration ------------------------------------------------------------------------
-
-    def advance_to(self, now_ns):
-        """Integrate the pose up to now_ns, applying early commands at their stamps on the way."""
-        early = self.early_commands
-        integrated = self.integrated_ns
-        if integrated is not None and now_ns < integrated:
-            early.clear()  # the clock jumped back: they were meant for a time that is gone
-        while early and early[0][0] <= now_ns:
-            stamp_ns, linear, angular = early.pop(0)
-            self._integrate_to(stamp_ns)
-            self.apply(linear, angular, stamp_ns)
-        self.sim.has_early[self.index] = bool(early)
-        self._integrate_to(now_ns)
-
-    def _integrate_to(self, now_ns):
-        """Integrate the pose up to now_ns, stopping the robot at a cmd_vel timeout on the way."""
-        integrated = self.integrated_ns
-        if integrated is None or now_ns < integrated:
-            # First call, or the clock jumped back (e.g. a replayed /clock): restart from here,
-            # and count the cmd_vel timeout from here too, not from a time that is now ahead.
-            self.integrated_ns = now_ns
-            if self.last_cmd_ns is not None:
-                self._set_last_command(min(self.last_cmd_ns, now_ns))
-            return
-        deadline = int(self.sim.deadline_ns[self.index])
-        if deadline <= now_ns:
-            if self._moving():
-                self.model.advance(max(0, deadline - integrated) / _NS)
-                integrated = max(integrated, deadline)
-                self.model.command(0.0, 0.0)
-                self.sim.get_logger().warning(
-                    f'{self.label}No cmd_vel for {self.sim.params.cmd_vel_timeout:g} s: '
-                    'stopping the robot')
-            # At rest, a passed deadline changes nothing until the next command.
-            self._set_last_command(None)
-        self.model.advance((now_ns - integrated) / _NS)
-        self.integrated_ns = now_ns
-
-    def _moving(self):
-        m = self.model
-        return bool(m.target_linear or m.target_angular or m.linear or m.angular)
-
     def reset(self, x, y, yaw):
         """Put the robot back at (x, y, yaw), at rest; forget commands and the driven path."""
-        self.model.reset(x, y, yaw)
-        self._set_last_command(None)
-        self.early_commands.clear()
-        self.sim.has_early[self.index] = False
+        self.fleet.reset(self.index, x, y, yaw)
         self.path.clear()
 
     # -- commands ---------------------------------------------------------------------------
@@ -198,18 +120,14 @@ class Robot:
                 'last command', throttle_duration_sec=1.0)
             return
         now_ns = sim.now_ns()
-        if sim.lockstep is not None and stamp_ns is not None and stamp_ns > now_ns:
+        fleet = self.fleet
+        if sim.clock.participant is not None and stamp_ns is not None and stamp_ns > now_ns:
             # Sent for a clock step that is on its way to us: take effect then, not now.
-            bisect.insort(self.early_commands, (stamp_ns, linear, angular))
-            sim.has_early[self.index] = True
+            fleet.hold(self.index, stamp_ns, linear, angular)
             return
-        self.advance_to(now_ns)
-        self.apply(linear, angular, now_ns)
-        sim.command_arrived()
-
-    def apply(self, linear, angular, at_ns):
-        self.model.command(linear, angular)
-        self._set_last_command(at_ns)
+        fleet.advance_robot_to(self.index, now_ns)
+        fleet.command(self.index, linear, angular, now_ns)
+        sim.clock.command_arrived()
 
     def check_publishers(self):
         """Warn once when more than one node publishes on this robot's cmd_vel."""

@@ -34,8 +34,8 @@ from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
 from sim_diffdrive.dds_profile import use_package_profile
-from sim_diffdrive.lockstep.engine import Lockstep
 from sim_diffdrive.sim.node import UnicycleSim
+from sim_diffdrive.testing.engine import Lockstep
 from sim_diffdrive.testing.probe import pose_of
 from sim_diffdrive.testing.probe import Probe
 
@@ -108,7 +108,8 @@ class SimGraph(Lockstep):
         params.setdefault('real_time_factor', FREE_REAL_TIME_FACTOR)
         # The graph steps the clock itself, not the simulator's handshake with other processes.
         params.setdefault('lockstep', False)
-        sim = UnicycleSim(context=self.context, parameter_overrides=_overrides(params))
+        sim = UnicycleSim(stepped=stepped, context=self.context,
+                          parameter_overrides=_overrides(params))
         self.add_clock_owner(sim) if stepped else self.add(sim)
         # Listen to odometry from the first message on (each robot's, with robots).
         for robot in params.get('robots') or [None]:

@@ -164,15 +164,3 @@ def _let_children_hear_ctrl_c():
     if (signal.getsignal(signal.SIGINT) is signal.SIG_IGN
             and threading.current_thread() is threading.main_thread()):
         signal.signal(signal.SIGINT, signal.default_int_handler)
-
-
-def closing_line(output):
-    """Return a motion's closing line ('Done in ...') from its output, or its last error line."""
-    lines = output.splitlines()
-    for line in reversed(lines):
-        if 'Done in ' in line:
-            return line
-    for line in reversed(lines):
-        if '[ERROR]' in line or 'Error' in line:
-            return line
-    return lines[-1] if lines else ''

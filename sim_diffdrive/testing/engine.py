@@ -16,14 +16,20 @@
 """
 Step an in-process graph in lockstep with a simulator that owns time: the engine of SimGraph.
 
-A ``UnicycleSim`` with ``publish_clock`` normally steps its clock on a wall timer.  Here the
-caller steps it instead: each step advances the clock by one simulator step, then spins until
+A ``UnicycleSim`` built with ``publish_clock`` and ``stepped=True`` takes no step of its own.
+Here the caller steps it: each step advances the clock by one simulator step, then spins until
 every message sent in the graph has been handled and no timer of a node is due, so a
-controller's answer always lands on its step, whatever the machine's load.  Tests, tools and
-users reach it through sim_diffdrive.harness.SimGraph.
+controller's answer always lands on its step, whatever the machine's load.  Messages are
+counted by each node's MessageCounter (lockstep/counter.py), the same counts a participant
+sends the simulator across processes.  Tests, tools and users reach it through
+sim_diffdrive.harness.SimGraph.
 """
 
 import time
+
+from rosgraph_msgs.msg import Clock as ClockMsg
+from sim_diffdrive.lockstep.counter import MessageCounter
+from sim_diffdrive.sim.clock import SteppedClock
 
 _NS = 1_000_000_000
 
@@ -32,9 +38,9 @@ class Lockstep:
     """
     The nodes of one test or benchmark run, spun by ``executor``, stepped by ``step()``.
 
-    Once the nodes have discovered each other, every publish adds the number of in-graph
-    subscriptions of its topic to what must arrive, every subscription callback counts one
-    arrival, and a step is settled when the two agree.
+    Once the nodes have discovered each other, each message a node publishes must arrive at
+    every in-graph subscription of its topic, and a step is settled when all that must arrive
+    has been handled (summed over the nodes' MessageCounters).
     """
 
     def __init__(self, executor):
@@ -42,9 +48,10 @@ class Lockstep:
         self.nodes = []
         self.clock_owner = None
         self.steps = 0
-        self._subscribers = {}
-        self._sent = 0
-        self._handled = 0
+        self._counters = []
+        self._fanout = []  # per counter: (topic, in-graph subscriptions) of what it publishes
+        self._base = (0, 0)  # (to arrive, handled) when the counters were last taken
+        self._carried = 0  # what was still on its way then
         self._discovered = False
 
     def add(self, node):
@@ -55,8 +62,11 @@ class Lockstep:
         return node
 
     def add_clock_owner(self, sim):
-        """Add a UnicycleSim with publish_clock whose clock ``step()`` advances (not a timer)."""
-        sim.clock_timer.cancel()
+        """Add a UnicycleSim built with publish_clock and stepped=True: ``step()`` steps it."""
+        if not isinstance(sim.clock, SteppedClock):
+            raise ValueError(
+                'the graph steps a simulator built with publish_clock:=true and stepped=True; '
+                f'this one keeps time with a {type(sim.clock).__name__}')
         self.clock_owner = sim
         return self.add(sim)
 
@@ -104,8 +114,10 @@ class Lockstep:
 
     def wait_for_discovery(self, timeout=10.0):
         """Spin until every publisher has matched every in-graph subscription of its topic."""
+        subscribers = self._graph_subscribers()
+
         def matched():
-            return all(pub.get_subscription_count() >= self._subscribers.get(pub.topic_name, 0)
+            return all(pub.get_subscription_count() >= subscribers.get(pub.topic_name, 0)
                        for node in self.nodes for pub in node.publishers)
         if not self.spin_until(matched, timeout, poll=0.01):
             raise RuntimeError('in-process nodes did not discover each other')
@@ -115,7 +127,7 @@ class Lockstep:
 
     def settled(self, now_ns):
         """Return whether every message sent was handled and every node's timers have run."""
-        if self._handled != self._sent:
+        if self.pending():
             return False
         for node in self.nodes:
             if node is self.clock_owner:
@@ -150,10 +162,10 @@ class Lockstep:
         if not self._discovered:
             self.wait_for_discovery()
         now_ns = self.clock_owner.now_ns()
-        if not self.spin_until(lambda: self._handled == self._sent, timeout):
+        if not self.spin_until(lambda: not self.pending(), timeout):
             raise RuntimeError(f'messages sent at t={now_ns / _NS:.3f} s were not handled')
         for _ in range(steps):
-            self.clock_owner.step()
+            self.clock_owner.clock.step()
             self.steps += 1
             self._settle(self.clock_owner.now_ns(), timeout)
 
@@ -173,28 +185,40 @@ class Lockstep:
         """Step for a number of simulated seconds (rounded to whole steps)."""
         self.step(round(seconds * _NS / self.step_ns))
 
-    def _instrument(self):
-        self._subscribers = {}
+    def pending(self):
+        """Return how many messages sent in the graph have not been handled yet."""
+        to_arrive, handled = self._totals()
+        return self._carried + (to_arrive - self._base[0]) - (handled - self._base[1])
+
+    def _totals(self):
+        to_arrive = sum(count * counter.sent[topic]
+                        for counter, fanout in zip(self._counters, self._fanout)
+                        for topic, count in fanout)
+        return to_arrive, sum(counter.handled for counter in self._counters)
+
+    def _graph_subscribers(self):
+        """Return how many subscriptions the graph's nodes have, per topic."""
+        subscribers = {}
         for node in self.nodes:
             for sub in node.subscriptions:
-                topic = sub.topic_name
-                self._subscribers[topic] = self._subscribers.get(topic, 0) + 1
-                if not getattr(sub, '_lockstep_counted', False):
-                    sub.callback = self._counted_callback(sub.callback)
-                    sub._lockstep_counted = True
-            for pub in node.publishers:
-                if not getattr(pub, '_lockstep_counted', False):
-                    pub.publish = self._counted_publish(pub.publish, pub.topic_name)
-                    pub._lockstep_counted = True
+                subscribers[sub.topic_name] = subscribers.get(sub.topic_name, 0) + 1
+        return subscribers
 
-    def _counted_callback(self, callback):
-        def counted(msg):
-            self._handled += 1
-            callback(msg)
-        return counted
+    def _instrument(self):
+        """Take every node's counter and the graph's subscriptions afresh (nodes came or went)."""
+        carried = self.pending()
+        subscribers = self._graph_subscribers()
+        self._counters = [MessageCounter.of(node, _clock_topic(node), fixed=True)
+                          for node in self.nodes]
+        for counter in self._counters:
+            counter.wrap_new()
+        self._fanout = [[(topic, subscribers[topic]) for topic in counter.sent
+                         if subscribers.get(topic)] for counter in self._counters]
+        self._base = self._totals()
+        self._carried = carried
 
-    def _counted_publish(self, publish, topic):
-        def counted(msg):
-            self._sent += self._subscribers.get(topic, 0)
-            publish(msg)
-        return counted
+
+def _clock_topic(node):
+    """Return the clock topic node runs on (its TimeSource's subscription, remapped or not)."""
+    return next((sub.topic_name for sub in node.subscriptions if sub.msg_type is ClockMsg),
+                '/clock')

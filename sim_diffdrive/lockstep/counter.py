@@ -1,0 +1,160 @@
+# Copyright 2026 motion_challenges contributors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The one way the lockstep counts a node's messages: its MessageCounter.
+
+Both sides of the handshake need the same numbers: how many messages a node published and
+handled per topic (and the newest header stamp of each), how many /clock messages it took.
+A participant (participant.py) sends them to the simulator in its answers; the simulator
+(owner.py) counts its own traffic the same way; the in-process engine behind SimGraph
+(testing/engine.py) sums them over the nodes of a graph.  The counts come from wrapping the
+node's subscription callbacks, timer callbacks and ``publish`` methods, so the node's code
+does not change.  ``MessageCounter.of(node, ...)`` is the only place that wraps: a node has
+one counter however many users it has, each adding itself to ``listeners``.
+"""
+
+from rclpy.clock import ClockType
+from rosgraph_msgs.msg import Clock as ClockMsg
+from sim_diffdrive.lockstep.handshake import ignored_topics
+
+_NS = 1_000_000_000
+
+
+class MessageCounter:
+    """
+    Count what a node publishes and handles on its topics (get one with ``of``).
+
+    Every function in ``listeners`` is called after each wrapped subscription or timer
+    callback.  With ``timers`` false the node's timers are left alone (a clock owner's timers
+    are its own).  Entities the node creates later are wrapped after its next callback, unless
+    ``fixed`` says it creates none (a simulator with hundreds of robots need not look each
+    time; whoever adds entities to it calls ``wrap_new``).
+    """
+
+    @classmethod
+    def of(cls, node, clock_topic, timers=False, fixed=False):
+        """
+        Return node's counter, made on first use; ``timers`` true also counts its timers.
+
+        The first caller's clock_topic and ``fixed`` hold; ``timers`` once true stays true.
+        """
+        counter = getattr(node, '_message_counter', None)
+        if counter is None:
+            counter = node._message_counter = cls(node, clock_topic, timers, fixed)
+        elif timers and not counter._timers:
+            counter._timers = True
+            counter.wrap_new()
+        return counter
+
+    def __init__(self, node, clock_topic, timers, fixed):
+        self.node = node
+        self._timers = timers
+        self._fixed = fixed
+        self._ignored = ignored_topics(clock_topic)
+        self.listeners = []
+        self.sent = {}
+        self.heard = {}
+        self.handled = 0  # messages handled on every counted topic together
+        # The highest header stamp [ns] published / handled per topic: a foreign node's stale
+        # or zero stamp never lowers what was heard.
+        self.sent_stamp = {}
+        self.heard_stamp = {}
+        self.clock_ns = None
+        self.clock_messages = 0  # /clock messages handled, repeats included
+        self.wrap_new()
+
+    def wrap_new(self):
+        """Wrap the node's entities that are not wrapped yet (cheap when there are none)."""
+        node = self.node
+        for sub in node.subscriptions:
+            if not getattr(sub, '_lockstep_counter', None):
+                topic = sub.topic_name
+                if sub.msg_type is ClockMsg:
+                    sub.callback = self._clock_callback(sub.callback)
+                elif topic not in self._ignored:
+                    self.heard.setdefault(topic, 0)
+                    sub.callback = self._heard_callback(sub.callback, topic)
+                sub._lockstep_counter = self
+        for timer in node.timers if self._timers else ():
+            if not getattr(timer, '_lockstep_counter', None):
+                timer.callback = self._timer_callback(timer)
+                timer._lockstep_counter = self
+        for pub in node.publishers:
+            if not getattr(pub, '_lockstep_counter', None):
+                if pub.topic_name not in self._ignored:
+                    self.sent.setdefault(pub.topic_name, 0)
+                    pub.publish = self._counted_publish(pub.publish, pub.topic_name)
+                pub._lockstep_counter = self
+
+    def _after(self):
+        if not self._fixed:
+            self.wrap_new()
+        for listener in self.listeners:
+            listener()
+
+    def _clock_callback(self, callback):
+        def counted(msg):
+            callback(msg)
+            self.clock_ns = msg.clock.sec * _NS + msg.clock.nanosec
+            self.clock_messages += 1
+            self._after()
+        return counted
+
+    def _heard_callback(self, callback, topic):
+        def counted(*args):
+            self.heard[topic] += 1
+            self.handled += 1
+            header = getattr(args[0], 'header', None)
+            if header is not None:
+                stamp = header.stamp.sec * _NS + header.stamp.nanosec
+                if stamp > self.heard_stamp.get(topic, -1):
+                    self.heard_stamp[topic] = stamp
+            callback(*args)
+            self._after()
+        return counted
+
+    def _timer_callback(self, timer):
+        callback = timer.callback
+        if timer.clock.clock_type != ClockType.ROS_TIME:
+            def counted(*args):
+                callback(*args)
+                self._after()
+            return counted
+        fired_at = [None]
+
+        def once_per_clock_time(*args):
+            # rclpy's EventsExecutor can queue a timer's event again before running the first
+            # (rclcpp #2771 has the same bug), most often on a loaded machine: the callback then
+            # runs several times at one simulated time, and each run moves the timer a period
+            # further, so later periods are skipped.  Run it once per time; restart the period.
+            now_ns = timer.clock.now().nanoseconds
+            if fired_at[0] == now_ns:
+                timer.reset()
+                return
+            fired_at[0] = now_ns
+            callback(*args)
+            self._after()
+        return once_per_clock_time
+
+    def _counted_publish(self, publish, topic):
+        def counted(msg):
+            self.sent[topic] += 1
+            header = getattr(msg, 'header', None)
+            if header is not None:
+                stamp = header.stamp.sec * _NS + header.stamp.nanosec
+                if stamp > self.sent_stamp.get(topic, -1):
+                    self.sent_stamp[topic] = stamp
+            publish(msg)
+        return counted

@@ -1,0 +1,227 @@
+# Copyright 2026 motion_challenges contributors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+How ``unicycle_sim`` keeps time: one of four clocks, chosen once at start (``make_clock``).
+
+- ``FollowedClock`` (``publish_clock`` false): the node's own clock, wall time or another
+  node's /clock (``use_sim_time``); odometry on a timer of that clock.  On another simulator's
+  clock it takes part in that simulator's lockstep, so that simulator waits for this robot.
+- ``FreeClock`` (``publish_clock``, ``lockstep`` false): the node owns time and steps it on a
+  wall timer at up to ``real_time_factor``, pacing itself by how fast the graph reacts.
+- ``LockstepClock`` (``publish_clock``, ``lockstep``): the node owns time and steps when every
+  participant has answered the last step (lockstep/owner.py; docs/time.md).
+- ``SteppedClock``: the node owns time and something else calls ``step()``: SimGraph, the
+  in-process harness, after each step has settled.
+
+Simulated time is kept in integer nanoseconds, so many steps add up without rounding drift.
+"""
+
+import time
+
+from rclpy.clock import Clock
+from rclpy.clock import ClockType
+from rclpy.qos import QoSProfile
+from rclpy.qos import ReliabilityPolicy
+from rclpy.time import Time
+from rosgraph_msgs.msg import Clock as ClockMsg
+from sim_diffdrive.lockstep.owner import LockstepOwner
+from sim_diffdrive.lockstep.participant import take_part
+
+_NS = 1_000_000_000
+# Free clock pacing: wait this many times the graph's recent reaction time between steps; the
+# remembered reaction time shrinks by this factor per step, so a spike is forgotten in a
+# second of simulated time and an idle graph runs at the full real_time_factor.
+_PACING_MARGIN = 2.0
+_REACTION_DECAY = 0.98
+# In lockstep the clock timer only paces and watches for laggards (answers drive the steps),
+# so it need not fire more often than this [s]; without members it catches up in bursts.
+_LOCKSTEP_TICK_S = 0.0005
+
+
+def make_clock(sim, stepped=False):
+    """Return the clock sim.params ask for (call before the robots' subscriptions exist)."""
+    p = sim.params
+    if not p.publish_clock:
+        return FollowedClock(sim)
+    if stepped:
+        return SteppedClock(sim)
+    return LockstepClock(sim) if p.lockstep else FreeClock(sim)
+
+
+class FollowedClock:
+    """The node's own clock (wall or another /clock): odometry on a timer of it."""
+
+    owns_time = False
+
+    def __init__(self, sim):
+        self.sim = sim
+        # This robot's side of another simulator's lockstep, when it runs on one's /clock.
+        self.participant = None
+
+    def start(self):
+        sim = self.sim
+        sim.create_timer(sim.step_ns / _NS, self._on_timer)
+        if sim.get_parameter('use_sim_time').value:
+            self.participant = take_part(sim)
+
+    def now_ns(self):
+        return self.sim.get_clock().now().nanoseconds
+
+    def command_arrived(self):
+        """Nothing to do: this clock does not wait for the graph."""
+
+    def set_real_time_factor(self, value):
+        """Nothing to do: another node sets the pace."""
+
+    def _on_timer(self):
+        self.sim.advance_all(self.now_ns())
+        self.sim.publish_odom()
+
+
+class OwnedClock:
+    """Simulated time that this node owns and publishes on /clock, stepped by ``step()``."""
+
+    owns_time = True
+    participant = None
+
+    def __init__(self, sim):
+        self.sim = sim
+        self.sim_ns = 0
+        self.publisher = sim.create_publisher(
+            ClockMsg, '/clock', QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE))
+        self.topic = self.publisher.topic_name
+        self._msg = ClockMsg()
+        # When the last step was taken [s, monotonic], and the wall time a step may take.
+        self.wall = time.monotonic()
+        self.budget_s = sim.step_ns / _NS / sim.params.real_time_factor
+
+    def start(self):
+        self.sim.fleet.integrated_ns[:] = 0
+        self.publish()
+
+    def now_ns(self):
+        return self.sim_ns
+
+    def step(self):
+        """Advance simulated time by one step and publish /clock and odometry."""
+        self.before_step(self.sim_ns + self.sim.step_ns)
+        self.sim_ns += self.sim.step_ns
+        self.sim.advance_all(self.sim_ns)
+        self.publish()
+        self.sim.publish_odom()
+        self.wall = time.monotonic()
+        self.after_step()
+
+    def before_step(self, step_ns):
+        """Run just before the clock steps to step_ns (a hook)."""
+
+    def after_step(self):
+        """Run just after a step (a hook)."""
+
+    def publish(self):
+        msg = ClockMsg()
+        msg.clock = Time(nanoseconds=self.sim_ns).to_msg()
+        self._msg = msg
+        self.publisher.publish(msg)
+        if self.sim.taps:
+            self.sim.taps.write(self.topic, msg, self.sim_ns)
+
+    def repeat(self):
+        """Publish the current /clock again, for a participant that may have lost it."""
+        self.publisher.publish(self._msg)
+
+    def command_arrived(self):
+        """Note that a robot's command arrived (a hook)."""
+
+    def set_real_time_factor(self, value):
+        self.budget_s = self.sim.step_ns / _NS / value
+
+
+class SteppedClock(OwnedClock):
+    """Owned time stepped from outside: SimGraph calls ``step()`` once the graph settled."""
+
+
+class _TimedClock(OwnedClock):
+    """Owned time stepped from a wall timer that fires every ``period_s()``."""
+
+    def start(self):
+        self.timer = self.sim.create_timer(
+            self.period_s(), self._on_timer, clock=Clock(clock_type=ClockType.STEADY_TIME))
+        super().start()
+
+    def period_s(self):
+        return self.budget_s
+
+    def set_real_time_factor(self, value):
+        super().set_real_time_factor(value)
+        self.timer.timer_period_ns = round(self.period_s() * _NS)
+        self.timer.reset()
+
+
+class FreeClock(_TimedClock):
+    """
+    Owned time on a wall timer at up to real_time_factor, paced by the graph's reactions.
+
+    real_time_factor is an upper bound: a step waits until the graph has had a few times its
+    recent reaction time to answer the previous one, so that a command lands on the step it was
+    sent for even when the machine is loaded.
+    """
+
+    def __init__(self, sim):
+        super().__init__(sim)
+        self._reaction_s = 0.0
+        self._answered = True
+        # Pacing never makes simulated time slower than real time.
+        self._max_reaction_s = sim.step_ns / _NS / _PACING_MARGIN
+
+    def _on_timer(self):
+        if time.monotonic() - self.wall >= _PACING_MARGIN * self._reaction_s:
+            self._reaction_s *= _REACTION_DECAY
+            self.step()
+
+    def after_step(self):
+        self._answered = False
+
+    def command_arrived(self):
+        """Note a robot's command: the first after a step answers it."""
+        if not self._answered:
+            # Only the first command after a step answers it: commands from a publisher that
+            # does not follow the clock (teleop, a second controller, a flood) arrive at any
+            # time, and counting each would double the wait every step until time stood still.
+            self._answered = True
+            reaction_s = min(time.monotonic() - self.wall, self._max_reaction_s)
+            self._reaction_s = max(reaction_s, self._reaction_s)
+
+
+class LockstepClock(_TimedClock):
+    """Owned time stepped when every participant has answered (see lockstep/owner.py)."""
+
+    def __init__(self, sim):
+        super().__init__(sim)
+        # Before the robots' cmd_vel subscriptions: see LockstepOwner.__init__.
+        self.owner = LockstepOwner(sim, self)
+
+    def start(self):
+        self.owner.start()
+        super().start()
+
+    def period_s(self):
+        return max(self.budget_s, _LOCKSTEP_TICK_S)
+
+    def _on_timer(self):
+        self.owner.try_step()
+
+    def before_step(self, step_ns):
+        self.owner.next_step(step_ns)
