@@ -200,6 +200,23 @@ def test_leaving_and_dropping_release_the_clock(joined):
     assert ledger.waiting_for(owner.now) == []
 
 
+def test_a_goodbye_holds_the_clock_until_its_last_message_is_handled(joined):
+    # Ctrl-C: the motion publishes its final stop, then says goodbye; the step must not go on
+    # before the simulator has the stop, or the robot drives on for the steps in between.
+    ledger, owner = joined
+    owner.step()
+    goodbye = Answer('m', '/motion', owner.now, {CMD: 1}, {ODOM: 2}, leaving=True)
+    assert ledger.receive(goodbye, owner.now) == 'left'
+    assert ledger.waiting_for(owner.now) == [('sim', CMD, 1)]
+    assert ledger.synced() == {'sim'}  # no longer counted as hearing anything
+    owner.hear_command()
+    assert ledger.waiting_for(owner.now) == []
+    assert set(ledger.members) == {'sim'}  # gone once its messages were handled
+    owner.step()
+    owner.hear_command()  # a non-member's command (a teleop) holds nothing
+    assert ledger.waiting_for(owner.now) == []
+
+
 def test_a_lost_message_is_forgiven_once(joined):
     ledger, owner = joined
     owner.step()

@@ -149,6 +149,8 @@ class _Member:
         self.stamp_floor = {}
         # Joining until it has caught up with every stamped topic it hears; then synced.
         self.synced = False
+        # It said goodbye: it answers no more, but what it sent is still waited for.
+        self.leaving = False
         # What this member had sent before it joined is nobody's debt.
         self.base_sent = dict(answer.sent)
         # Per subscribed topic: messages sent by members that this member will never hear
@@ -162,7 +164,8 @@ class StepLedger:
 
     ``receive()`` every answer (the owner's own included), ``waiting_for(now_ns)`` to know
     whether the step at now_ns is settled, ``next_step()`` when the clock moves on.  The
-    owner's own id is never dropped, and a participant that said it leaves is gone for good.
+    owner's own id is never dropped; a participant that said it leaves is waited for only until
+    what it sent has been handled, and is gone for good.
     """
 
     def __init__(self, owner):
@@ -176,13 +179,18 @@ class StepLedger:
         """Record an answer heard at wall_s; return 'joined', 'left' or None (no change)."""
         if answer.participant in self.left:
             return None  # a callback that ran after leave(): leaving is final
+        member = self.members.get(answer.participant)
         if answer.leaving:
             self.left.add(answer.participant)
-            if self.members.pop(answer.participant, None) is None:
+            if member is None:
                 return None
+            # Its goodbye counts its last messages (a final stop): the step waits for them to
+            # be handled, then it goes (waiting_for).
+            member.answer = answer
+            member.leaving = True
             self.version += 1
             return 'left'
-        member = self.members.get(answer.participant)
+
         if member is None:
             self.members[answer.participant] = _Member(answer, now_ns, wall_s)
             return 'joined'
@@ -193,8 +201,9 @@ class StepLedger:
         return None
 
     def synced(self):
-        """Return the ids of the members that are counted (joined and caught up)."""
-        return {pid for pid, member in self.members.items() if member.synced}
+        """Return the ids of the members that are counted (joined, caught up, not leaving)."""
+        return {pid for pid, member in self.members.items()
+                if member.synced and not member.leaving}
 
     def drop(self, participant):
         """Go on without a participant (it may join again by answering); never the owner."""
@@ -204,7 +213,8 @@ class StepLedger:
     def silent(self, wall_s, timeout_s):
         """Return the participants nothing was heard from for longer than timeout_s (wall)."""
         return [pid for pid, member in self.members.items()
-                if pid != self.owner and wall_s - member.heard_wall > timeout_s]
+                if pid != self.owner and not member.leaving
+                and wall_s - member.heard_wall > timeout_s]
 
     def roster(self, owner, now_ns, waiting=()):
         """Return the roster to publish: the counted members and the topics they handle."""
@@ -225,7 +235,7 @@ class StepLedger:
         stamped = self._latest_stamps()
         debts = {}
         for pid, member in self.members.items():
-            if not member.synced:
+            if not member.synced or member.leaving:
                 continue
             for topic, heard in member.answer.heard.items():
                 if topic in stamped:
@@ -249,7 +259,7 @@ class StepLedger:
         # Most news during a step is one more answer while others are still missing: say so
         # at once, without the counts (which cost time in proportion to members x topics).
         missing = [(pid, None, 0) for pid, member in self.members.items()
-                   if member.answer.step_ns < now_ns
+                   if member.answer.step_ns < now_ns and not member.leaving
                    and (member.synced or member.joined_ns < now_ns)]
         if missing:
             return missing
@@ -257,6 +267,8 @@ class StepLedger:
         caught_up = []
         stamps = self._latest_stamps()
         for pid, member in self.members.items():
+            if member.leaving:
+                continue
             answer = member.answer
             floor = member.stamp_floor
             behind = [(pid, topic, 0) for topic, stamp in answer.heard_stamp.items()
@@ -272,6 +284,10 @@ class StepLedger:
                 self.version += 1
                 member.offset = {}
                 self._settle_offsets(member)
+            # What the leaving sent has been handled: now they go.
+            for pid in [pid for pid, member in self.members.items() if member.leaving]:
+                del self.members[pid]
+                self.version += 1
         return reasons
 
     def next_step(self):
