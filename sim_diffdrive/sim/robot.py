@@ -18,18 +18,22 @@ One robot of ``unicycle_sim``: its topics, frames, messages and warnings.
 The simulator (node.py) keeps time; the fleet (fleet.py) holds every robot's state and steps
 them all at once.  A Robot is what is each robot's own on the ROS side, as a turtle is in
 turtlesim: ``cmd_vel`` in, ``odom`` and ``path`` out (under ``<name>/`` when the simulator has
-``robots``), frames ``<name>/odom`` -> ``<name>/base_footprint``.  A command is checked here
+``robots``), frames ``<name>/odom`` -> ``<name>/base_footprint``, and ``initialpose`` (RViz's
+"2D Pose Estimate") to set the robot down somewhere, at rest.  A command is checked here
 and handed to the fleet at the moment it arrives (the robot integrated up to then first), so
 it takes effect then, whatever the step.
 """
 
 from collections import deque
+import math
 
 from geometry_msgs.msg import PoseStamped
+from geometry_msgs.msg import PoseWithCovarianceStamped
 from geometry_msgs.msg import Twist
 from geometry_msgs.msg import TwistStamped
 from nav_msgs.msg import Odometry
 from nav_msgs.msg import Path
+from sim_diffdrive.angles import yaw_from_quaternion
 from sim_diffdrive.sim.odom_tf import namespaced_frame
 from sim_diffdrive.sim.odom_tf import resolve_frame
 
@@ -71,6 +75,8 @@ class Robot:
         else:
             sub = sim.create_subscription(Twist, prefix + 'cmd_vel', self.on_twist, 10)
         self.cmd_topic = sub.topic_name
+        sim.create_subscription(PoseWithCovarianceStamped, prefix + 'initialpose',
+                                self.on_initial_pose, 10)
         self.path = DrivenPath(p.path_length)
         self.odom_msg = Odometry()
         self.odom_msg.pose.covariance = covariance(p.pose_covariance_diagonal)
@@ -87,6 +93,33 @@ class Robot:
         """Put the robot back at (x, y, yaw), at rest; forget commands and the driven path."""
         self.fleet.reset(self.index, x, y, yaw)
         self.path.clear()
+
+    def on_initial_pose(self, msg):
+        """Set the robot down at the pose given (in its odometry frame), at rest."""
+        sim = self.sim
+        frame = self.odom_msg.header.frame_id
+        given = msg.header.frame_id.lstrip('/')
+        p = msg.pose.pose
+        values = (p.position.x, p.position.y, p.orientation.x, p.orientation.y,
+                  p.orientation.z, p.orientation.w)
+        if given != frame:
+            why = f"is in frame '{given}', not in the odometry frame '{frame}'"
+        elif not all(math.isfinite(v) for v in values) or max(map(abs, values[:2])) > 1e6:
+            why = 'holds a non-finite or absurd value'
+        elif not any(values[2:]):
+            why = 'has a zero quaternion'
+        else:
+            why = None
+        if why is not None:
+            sim.get_logger().warning(f'{self.label}Refusing initialpose: it {why}; the robot '
+                                     'stays where it is')
+            return
+        yaw = yaw_from_quaternion(*values[2:])
+        sim.advance_all(sim.now_ns())
+        self.reset(p.position.x, p.position.y, yaw)
+        sim.get_logger().info(f'{self.label}Set to ({p.position.x:.3f}, {p.position.y:.3f}, '
+                              f'{yaw:.3f} rad) in {frame} by initialpose, at rest')
+        sim.publish_odom()
 
     # -- commands ---------------------------------------------------------------------------
 
