@@ -13,17 +13,114 @@
 # limitations under the License.
 
 """
-Benchmark this package against the programs it replaces and print one table.
+Benchmark this package against the programs it replaces and print one table (``make bench``).
 
-Usage (venv active): ``python tools/bench.py [--quick] [--json PATH] [--only GROUPS]``, or
-``make bench``.  The JSON goes to out/bench.json unless --json says otherwise.  The benchmark
-itself is the package tools/benchmark/ (see its __init__ for a map of its modules); Python puts
-this script's folder on the path, so it imports from there.
+Each row puts this project's figure next to a reference measured in the same run (the original
+program, Euler integration, another executor, ...) and, where the project has a target, whether
+it was met.  The rows are in tools/benchmark/; their raw numbers go to the JSON.  The run has a
+ROS domain of its own (random in 1..100 unless --domain-id), discovery on this machine only.
 """
 
+import argparse
+import json
+import math
+import os
+from pathlib import Path
+import signal
 import sys
+import time
 
-from benchmark.cli import main
+from benchmark import fleet  # noqa: F401  (each module registers its rows, in table order)
+from benchmark import one_process  # noqa: F401
+from benchmark import processes  # noqa: F401
+from benchmark.core import ROWS
+from benchmark.core import Run
+import rclpy
+from rclpy.logging import LoggingSeverity
+from sim_diffdrive.harness import DOMAIN_VARIABLE
+from sim_diffdrive.harness import isolated_domain_id
+
+COLUMNS = {'#': 2, 'measure': 34, 'this project': 38, 'reference': 38, 'target': 12,
+           'result': 6}  # header: the width a cell wraps at
+
+
+def print_table(rows):
+    """Print the rows as a table with wrapped cells, then their numbered notes."""
+    table = [list(COLUMNS)] + [[str(i), r['measure'], r['project'], r['reference'], r['target'],
+                                r['result']] for i, r in enumerate(rows.values(), 1)]
+    widths = [min(max(len(cells[i]) for cells in table), w) for i, w in
+              enumerate(COLUMNS.values())]
+    for cells in table:
+        wrapped = [[''] for _ in cells]
+        for lines, cell, width in zip(wrapped, cells, widths):
+            for word in cell.split(' '):
+                if lines[-1] and len(lines[-1]) + 1 + len(word) > width:
+                    lines.append(word)
+                else:
+                    lines[-1] = f'{lines[-1]} {word}' if lines[-1] else word
+        for i in range(max(map(len, wrapped))):
+            print(' | '.join((w[i] if i < len(w) else '').ljust(width)
+                             for w, width in zip(wrapped, widths)).rstrip())
+        print('-+-'.join('-' * w for w in widths))
+    print('\nNotes:\n' + '\n'.join(f'{i}. {r["note"]}' for i, r in enumerate(rows.values(), 1)))
+
+
+def jsonable(value):
+    """Return value with str keys, numpy numbers as Python ones, NaN and infinity as None."""
+    if isinstance(value, (dict, list, tuple)):
+        return ({str(k): jsonable(v) for k, v in value.items()} if isinstance(value, dict)
+                else [jsonable(v) for v in value])
+    value = value.item() if hasattr(value, 'item') else value
+    return None if isinstance(value, float) and not math.isfinite(value) else value
+
+
+def main(argv=None):
+    groups = list(dict.fromkeys(group for group, _ in ROWS.values()))
+    parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
+    parser.add_argument('--quick', action='store_true', help='small sizes and short runs')
+    parser.add_argument('--json', default='out/bench.json', help='default: %(default)s')
+    parser.add_argument('--domain-id', type=int, help='ROS domain (default: random in 1..100)')
+    parser.add_argument('--only', help='comma-separated groups to run, of: ' + ', '.join(groups))
+    parser.add_argument('--rtf', type=float, default=100.0, help='real_time_factor (a bound) of '
+                        'the simulator across processes (default: %(default)g)')
+    options = parser.parse_args(argv)
+    selected = options.only.split(',') if options.only else groups
+    if set(selected) - set(groups):
+        parser.error(f'unknown group(s) for --only: {", ".join(set(selected) - set(groups))}')
+    if options.domain_id:
+        os.environ[DOMAIN_VARIABLE] = str(options.domain_id)
+    domain_id = isolated_domain_id()  # the processes started inherit it
+    signal.signal(signal.SIGTERM, signal.default_int_handler)  # stop them on SIGTERM too
+    rclpy.logging.set_logger_level('', LoggingSeverity.WARN)  # the nodes here log at INFO
+    with open('/proc/cpuinfo') as cpuinfo:
+        cpu = next((line.split(':')[1].strip() for line in cpuinfo if 'model name' in line), '?')
+    info = {'nproc': os.cpu_count(), 'cpu': cpu, 'loadavg': list(os.getloadavg()),
+            'python': sys.version.split()[0]}
+    print(f'{info["nproc"]} x {cpu}, load {info["loadavg"][0]:.2f}; ROS_DOMAIN_ID={domain_id}, '
+          f'localhost only{", --quick" if options.quick else ""}', flush=True)
+    run, rows, start = Run(options.quick, options.rtf), {}, time.monotonic()
+    try:
+        for key, (group, measure) in ROWS.items():
+            if group in selected:
+                print(f'[{time.monotonic() - start:6.1f} s] {key}', flush=True)
+                rows[key] = measure(run).report()
+    except (KeyboardInterrupt, FileNotFoundError) as error:  # not on PATH: make venv
+        print(error or 'Interrupted', file=sys.stderr)
+        return 130 if isinstance(error, KeyboardInterrupt) else 2
+    finally:
+        run.stop_all()
+    wall_s = time.monotonic() - start
+    print(f'\nMachine: {info["nproc"]} cores, {cpu}; Python {info["python"]}; load average at '
+          f'start {info["loadavg"][0]:.2f}; total {wall_s:.0f} s wall\n')
+    print_table(rows)
+    path = Path(options.json)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(jsonable({'machine': info, 'quick': options.quick, 'rows': rows,
+                                         'domain_id': domain_id, 'wall_s': wall_s}),
+                               indent=2, allow_nan=False) + '\n')
+    print(f'\nJSON: {path}')
+    return 0
+
 
 if __name__ == '__main__':
     sys.exit(main())

@@ -13,51 +13,37 @@
 # limitations under the License.
 
 """
-The original ROS 1 tutorial programs, reproduced as pure scripts, and the pure maths of the rows.
+The original ROS 1 tutorial programs as pure scripts, and the pure maths of the rows (no ROS).
 
 A script publishes through ``robot.publish(linear, angular)``, reads ``robot.now_ns()``, and each
-``yield`` waits for the next tick of its rate, as rospy's ``rate.sleep()`` does on a clock that
-keeps perfect time (sim time).  The same script runs against the pure kinematic model
-(``ModelRobot``, here, for tests) or against the real simulator node (``ScriptNode`` in
-benchmark.graph, in lockstep).
-
-Also here, without ROS: the start times of the rotation rows, the yaw and closure errors, and
-forward Euler against the exact arc.
+``yield`` waits for the next tick of its rate, as rospy's ``rate.sleep()`` on a clock that keeps
+perfect time (sim time).  It runs on the exact kinematic model (``ModelRobot``), whose ticks a
+harness Probe then replays to the simulator node (benchmark.one_process).
 """
 
 import math
 
-from benchmark.config import NS
 import numpy as np
 from sim_diffdrive.sim.kinematics import integrate
 from sim_diffdrive.sim.kinematics import UnicycleModel
 
-# The original programs' pi.
+NS = 1_000_000_000
 ORIGINAL_PI = 3.14
-
-
-def _sleep_ticks(rate_hz, seconds):
-    for _ in range(round(rate_hz * seconds)):
-        yield
 
 
 def original_rotate(robot, speed_deg, angle_deg, clockwise):
     """
-    Rotate as The Construct's original ``rotate_robot.py`` did (it ticked at 10 Hz).
+    Rotate as The Construct's ``rotate_robot.py`` did, at 10 Hz, topic and final stop fixed.
 
     Degrees to radians with 3.14/180; t0 = the whole seconds of now (``rospy.Time.now().secs``);
-    every tick publishes the turn, then estimates the angle turned as speed x (whole seconds of
-    now - t0) and stops once that estimate reaches the goal.  The topic is fixed (cmd_vel) and
-    the final stop is published, so only the time and pi bugs remain.
+    every tick publishes the turn, estimates the angle turned as speed x (whole seconds of now -
+    t0) and stops once that estimate reaches the goal.
     """
     angular_speed = speed_deg * ORIGINAL_PI / 180.0
-    relative_angle = angle_deg * ORIGINAL_PI / 180.0
-    turn = -abs(angular_speed) if clockwise else abs(angular_speed)
     t0 = robot.now_ns() // NS
     while True:
-        robot.publish(0.0, turn)
-        current_angle = angular_speed * (robot.now_ns() // NS - t0)
-        if current_angle >= relative_angle:
+        robot.publish(0.0, -angular_speed if clockwise else angular_speed)
+        if angular_speed * (robot.now_ns() // NS - t0) >= angle_deg * ORIGINAL_PI / 180.0:
             break
         yield
     robot.publish(0.0, 0.0)
@@ -65,51 +51,37 @@ def original_rotate(robot, speed_deg, angle_deg, clockwise):
 
 def rbx1_timed_out_and_back(robot, rate=50, linear_speed=0.2, goal_distance=1.0,
                             angular_speed=1.0, goal_angle=math.pi):
-    """
-    Drive rbx1's ``timed_out_and_back.py``: two legs, ticks counted as rbx1 counts them.
-
-    Drive ticks = int(goal_distance / linear_speed * rate); turn ticks = int(goal_angle * rate)
-    (from the angle, not the turn's duration); each tick publishes once, a stop is a zero Twist
-    followed by ``rospy.sleep(1)``.
-    """
-    linear_duration = goal_distance / linear_speed
+    """Drive rbx1's ``timed_out_and_back.py``: two legs, ticks as rbx1 counts them (rbx1_ticks)."""
+    drive, turn, _ = rbx1_ticks(rate, linear_speed, goal_distance, angular_speed, goal_angle)
     for _ in range(2):
-        for _ in range(int(linear_duration * rate)):
-            robot.publish(linear_speed, 0.0)
-            yield
-        robot.publish(0.0, 0.0)
-        yield from _sleep_ticks(rate, 1.0)
-        for _ in range(int(goal_angle * rate)):
-            robot.publish(0.0, angular_speed)
-            yield
-        robot.publish(0.0, 0.0)
-        yield from _sleep_ticks(rate, 1.0)
+        for ticks, linear, angular in ((drive, linear_speed, 0.0), (turn, 0.0, angular_speed)):
+            for _ in range(ticks):
+                robot.publish(linear, angular)
+                yield
+            robot.publish(0.0, 0.0)
+            yield from range(rate)  # rospy.sleep(1)
     robot.publish(0.0, 0.0)
 
 
 def rbx1_ticks(rate=50, linear_speed=0.2, goal_distance=1.0, angular_speed=1.0,
                goal_angle=math.pi):
-    """Return rbx1's (drive ticks, turn ticks) and the angle its turn really covers [rad]."""
-    drive = int(goal_distance / linear_speed * rate)
+    """Return rbx1's drive and turn ticks (from the angle, not the turn's duration) and angle."""
     turn = int(goal_angle * rate)
-    return drive, turn, turn / rate * angular_speed
+    return int(goal_distance / linear_speed * rate), turn, turn / rate * angular_speed
 
 
 def move_rob(robot, cycles, rate=10, linear_speed=0.5, angular_speed=0.5, half_period=15.0):
     """
-    Drive ``move_rob.py``'s circle back and forth at 10 Hz, modelled as described below.
+    Drive ``move_rob.py``'s circle back and forth at 10 Hz: every tick publishes the Twist.
 
-    Every tick publishes the Twist.  A flip is published twice, a tick apart: first a Twist with
-    only the (new) angular part, then both parts.  The original never stops; the stop at the
-    end is there to measure it.
+    A flip is published twice, a tick apart: first a Twist with only the (new) angular part,
+    then both parts.  The original never stops; the stop at the end is there to measure it.
     """
     half_ticks = round(half_period * rate)
     for tick in range(2 * cycles * half_ticks):
         sign = 1.0 if (tick // half_ticks) % 2 == 0 else -1.0
-        if tick and tick % half_ticks == 0:
-            robot.publish(0.0, sign * angular_speed)
-        else:
-            robot.publish(sign * linear_speed, sign * angular_speed)
+        flip = tick and tick % half_ticks == 0
+        robot.publish(0.0 if flip else sign * linear_speed, sign * angular_speed)
         yield
     robot.publish(0.0, 0.0)
 
@@ -118,38 +90,36 @@ class ModelRobot:
     """Play a script against the exact kinematic model on a simulated clock (no ROS)."""
 
     def __init__(self, start_ns=0):
-        self.model = UnicycleModel()
-        self._now_ns = start_ns
+        self.model, self.start_ns, self._now_ns = UnicycleModel(), start_ns, start_ns
+        self.command, self.ticks = (0.0, 0.0), []
 
     def now_ns(self):
         return self._now_ns
 
     def publish(self, linear, angular):
         self.model.command(linear, angular)
+        self.command = linear, angular
 
     def play(self, script, rate_hz):
-        """Run script to its end; return the final (x, y, yaw) and the seconds it took."""
-        period_ns = round(NS / rate_hz)
-        start_ns = self._now_ns
+        """
+        Run script to its end; return the final (x, y, yaw) and the seconds it took.
+
+        ``ticks`` then holds the (linear, angular) in force at each tick, which a node that
+        publishes one Twist a tick replays (harness.Probe.play): the script's final stop, at
+        the tick after, is the zero Twist the Probe ends with.
+        """
         for _ in script:
-            self.model.advance(period_ns / NS)
-            self._now_ns += period_ns
-        m = self.model
-        return (m.x, m.y, m.yaw), (self._now_ns - start_ns) / NS
-
-
-# -- the maths of the accuracy rows ------------------------------------------------------------
+            self.ticks.append(self.command)
+            self.model.advance(1.0 / rate_hz)
+            self._now_ns += round(NS / rate_hz)
+        return (self.model.x, self.model.y, self.model.yaw), (self._now_ns - self.start_ns) / NS
 
 
 def start_times(count, step_s, after_s):
-    """Return count start times [ns] spread over one second, on the step grid, after after_s."""
+    """Return count start times [ns] spread over one second, on the step grid, 3 s apart."""
     step_ns = round(step_s * NS)
-    whole_s = math.floor(after_s) + 1
-    times = []
-    for i in range(count):
-        offset_ns = round(i * NS / count / step_ns) * step_ns
-        times.append((whole_s + 3 * i) * NS + offset_ns)
-    return times
+    return [(math.floor(after_s) + 1 + 3 * i) * NS + round(i * NS / count / step_ns) * step_ns
+            for i in range(count)]
 
 
 def yaw_error_deg(start_yaw, end_yaw, goal):
@@ -160,7 +130,7 @@ def yaw_error_deg(start_yaw, end_yaw, goal):
 def closure(start, end):
     """Return (mm, deg) from the start pose to the end pose."""
     mm = 1000.0 * math.hypot(end[0] - start[0], end[1] - start[1])
-    return mm, math.degrees(abs(math.remainder(end[2] - start[2], 2.0 * math.pi)))
+    return mm, yaw_error_deg(start[2], end[2], 0.0)
 
 
 def integration_errors(laps=100, linear=0.5, angular=0.5, dt=0.02):
@@ -172,26 +142,17 @@ def integration_errors(laps=100, linear=0.5, angular=0.5, dt=0.02):
     """
     end_t = laps * 2.0 * math.pi / angular
     steps = int(end_t / dt)
-    last = end_t - steps * dt
-    dts = np.full(steps + 1, dt)
-    dts[-1] = last
+    dts = np.append(np.full(steps, dt), end_t - steps * dt)
     times = np.cumsum(dts)
-    radius = linear / angular
-    exact_x = radius * np.sin(angular * times)
-    exact_y = radius * (1.0 - np.cos(angular * times))
+    exact = linear / angular * np.array([np.sin(angular * times), 1.0 - np.cos(angular * times)])
     # Forward Euler as turtlesim, ArbotiX and nav2_loopback_sim: move along the old heading.
     headings = np.concatenate(([0.0], np.cumsum(angular * dts)[:-1]))
-    euler_x = np.cumsum(linear * dts * np.cos(headings))
-    euler_y = np.cumsum(linear * dts * np.sin(headings))
-    arc_x = np.empty_like(times)
-    arc_y = np.empty_like(times)
-    x = y = yaw = 0.0
-    for i, step in enumerate(dts):
-        x, y, yaw = integrate(x, y, yaw, linear, angular, step)
-        arc_x[i] = x
-        arc_y[i] = y
-    euler = np.hypot(euler_x - exact_x, euler_y - exact_y)
-    arc = np.hypot(arc_x - exact_x, arc_y - exact_y)
+    euler = np.cumsum(linear * dts * np.array([np.cos(headings), np.sin(headings)]), axis=1)
+    arc, pose = [], (0.0, 0.0, 0.0)
+    for step in dts:
+        pose = integrate(*pose, linear, angular, step)
+        arc.append(pose[:2])
+    euler, arc = (np.hypot(*(path - exact)) for path in (euler, np.array(arc).T))
     return {'arc_end_m': float(arc[-1]), 'arc_max_m': float(arc.max()),
             'euler_end_m': float(euler[-1]), 'euler_max_m': float(euler.max()),
             'steps': int(steps + 1)}

@@ -13,341 +13,296 @@
 # limitations under the License.
 
 """
-Rows measured on separate processes: the executables as a user starts them, over DDS.
+Rows 7-12: the executables as a user starts them, over DDS, watched from this process.
 
-Row 7, the real-time factor of the motion executables against a ``unicycle_sim`` process that
-owns the clock; rows 8-10, cmd_vel -> odom latency and the simulator's CPU on wall time.  The
-processes start with the harness's helpers (sim_diffdrive.harness) and are all stopped,
-however the run ends, by ``Children.stop_all()``.  This process watches them through a
-BenchGraph with discovery on (the run's domain, this machine only).
+Row 7 runs each motion against a fresh ``unicycle_sim`` owning the clock (watch_motion, which
+``make demo`` shares); rows 8-10 time cmd_vel -> odom and read the simulator's CPU on wall
+time; rows 11-12 drive N robots in one process and as 2N processes (motions_run, which row 17
+shares).
 """
 
+import itertools
 import math
-import os
 import random
-import signal
-import subprocess
-import sys
+import re
 import time
 
-from benchmark.config import TARGET_IDLE_CPU_PERCENT
-from benchmark.config import TARGET_LATENCY_P99_MS
-from benchmark.config import TARGET_RTF_PROCESSES
-from benchmark.graph import BenchGraph
+from benchmark import core
+from benchmark.core import Row
+from benchmark.core import row
+from benchmark.one_process import one_process
 from benchmark.originals import closure
-from benchmark.table import fmt_rtfs
-from benchmark.table import met
-from benchmark.table import row
 import numpy as np
 from rclpy.clock import Clock
 from rclpy.clock import ClockType
+from rclpy.experimental import EventsExecutor
 from sim_diffdrive.harness import is_moving
 from sim_diffdrive.harness import pose_of
-from sim_diffdrive.harness import Probe
-from sim_diffdrive.harness import Process
-from sim_diffdrive.harness import ros_params
+from sim_diffdrive.harness import SimGraph
 from sim_diffdrive.harness import stamp_s
-from sim_diffdrive.harness import start
-from sim_diffdrive.harness import stop
 from sim_diffdrive.harness import twist_of
 
-# Executable, parameters, simulated seconds of the motion, and its turn [deg].
-PROCESS_SCENARIOS = {
-    'rotate': ('rotate_robot', {'angular_speed_deg': 60.0, 'angle_deg': 90.0, 'clockwise': True,
-                                'mode': 'timed'}, 1.5, -90.0),
-    'circle': ('circle_back_and_forth', {'cycles': 1}, 30.0, 0.0),
-    'out_and_back': ('timed_out_and_back', {}, 20.3, 0.0),
+ROTATE = {'angular_speed_deg': 60.0, 'angle_deg': 90.0, 'clockwise': True}
+# name: label, executable, parameters, simulated seconds (about), turn from the start [deg].
+MOTIONS = {
+    'rotate': ('rotate_robot (timed)', 'rotate_robot', {**ROTATE, 'mode': 'timed'}, 1.5, -90),
+    'rotate_odom': ('rotate_robot (odom)', 'rotate_robot', {**ROTATE, 'mode': 'odom'}, 1.5, -90),
+    'circle': ('circle_back_and_forth', 'circle_back_and_forth', {'cycles': 1}, 30.0, 0),
+    'circle_5s': ('circle_back_and_forth (1 cycle, 5 s half period)', 'circle_back_and_forth',
+                  {'cycles': 1, 'half_period': 5.0}, 10.0, 0),
+    'out_and_back': ('timed_out_and_back', 'timed_out_and_back', {}, 20.3, 0),
+    'odom_out_and_back': ('odom_out_and_back', 'odom_out_and_back', {}, 21.0, 0),
 }
+TIMEOUT_S = 20.0  # wall s (and 4 per robot) for the motion processes of rows 12 and 17
+DONE = re.compile(r'Done in ([0-9.]+) s \(([0-9.]+) s wall\).* error ([0-9.]+) mm, ([0-9.]+) deg')
 
 
-class Children:
-    """Processes started by the benchmark (harness.start), all stopped by stop_all()."""
-
-    def __init__(self):
-        self.running = []
-        self._outputs = {}
-
-    def start(self, executable, namespace=None, **params):
-        """Start an executable with ROS parameters (bools as true/false) in a namespace."""
-        process = start(executable, *ros_params(
-            *(f'{name}:={str(value).lower() if isinstance(value, bool) else value}'
-              for name, value in params.items()), namespace=namespace))
-        self.running.append(process)
-        return process
-
-    def start_python(self, code, stdin=subprocess.DEVNULL):
-        """Start this Python interpreter on a piece of code (a load, a listener, ...)."""
-        process = Process([sys.executable, '-c', code], stdin=stdin)
-        self.running.append(process)
-        return process
-
-    def interrupt(self, process):
-        """Send a child Ctrl-C without waiting for it to exit (stop() or stop_all() later)."""
-        if process in self.running and process.poll() is None:
-            process.send(signal.SIGINT)
-
-    def stop(self, process):
-        """Stop a child as Ctrl-C does (a motion then stops its robot); return its output."""
-        if process in self.running:
-            self.running.remove(process)
-            self._outputs[process] = stop(process, timeout=3.0)
-        return self._outputs.get(process, '')
-
-    def stop_all(self):
-        for process in list(self.running):
-            self.stop(process)
+def session():
+    """Return a SimGraph on the run's domain, for talking to processes."""
+    return SimGraph(executor_class=EventsExecutor)
 
 
-def tail(output, lines=12):
-    """Return the last lines of a child's output, indented, for an error message."""
-    return '\n'.join('    ' + line for line in output.splitlines()[-lines:])
-
-
-class Observer(Probe):
+def watch_motion(graph, start, stop, motion, rtf, **sim_params):
     """
-    A harness Probe that also follows the robot's movement on odometry.
+    Run a motion (of MOTIONS) against a fresh unicycle_sim owning the clock at rtf; watch it.
 
-    ``first`` is the first pose heard since restart(); ``move_start`` and ``move_end`` are the
-    (sim, wall) times of the last odometry at rest before the robot moved and of the first at
-    rest after it, wall times being the harness's monotonic arrival times.
+    start(executable, **params) starts a process, stop(process) stops it, returns its output.
+    Returns the exit code ('timeout', 'no odometry'), the motion's log, the odometry heard and
+    when; with odometry, the goal, the resting pose and its error, and the sim and wall s from
+    the last odometry at rest before the movement to the first after it.
     """
-
-    def __init__(self, context, commands=False):
-        # Commands only where this process drives the robot: the simulator warns of a second
-        # publisher.
-        super().__init__('bench_observer', listen_only=not commands, context=context,
-                         enable_rosout=False)
-        self.restart()
-
-    def restart(self):
-        """Forget the start pose and the movement seen so far."""
-        self.first = None
-        self.moving = False
-        self.move_start = None
-        self.move_end = None
-        self._at_rest = None
-
-    @property
-    def latest(self):
-        """Return the latest pose heard, or None."""
-        return pose_of(self.odom) if self.odom else None
-
-    @property
-    def received_at(self):
-        """Return the monotonic wall time at which the latest odometry arrived, or None."""
-        return self.odom_walls[-1] if self.odom_walls else None
-
-    def _on_odom(self, msg):
-        super()._on_odom(msg)
-        sample = (stamp_s(msg), self.odom_walls[-1])
-        self.first = self.first or pose_of(msg)
-        self.moving = is_moving(msg)
-        if self.moving:
-            if self.move_start is None:
-                self.move_start = self._at_rest or sample
-            self.move_end = None
-        else:
-            self._at_rest = sample
-            if self.move_start is not None and self.move_end is None:
-                self.move_end = sample
-
-
-# -- row 7: real-time factor across processes ----------------------------------------------------
-
-
-def run_process_scenarios(children, domain_id, scenarios, rtf, runs):
-    """
-    Run each motion executable `runs` times, each time against a fresh unicycle_sim.
-
-    Returns {scenario: [result of each run]}, measured on odometry by an observer in this
-    process.
-    """
-    results = {}
-    with BenchGraph(domain_id=domain_id, offline=False) as session:
-        observer = session.add(Observer(session.context))
-        for scenario in scenarios:
-            results[scenario] = [run_process_motion(children, session, observer, scenario, rtf)
-                                 for _ in range(runs)]
-    return results
-
-
-def run_process_motion(children, session, observer, scenario, rtf):
-    """
-    Run one motion executable against a fresh simulator that owns the clock (rtf).
-
-    Fresh, as a user would start them, so each run starts from the simulator's initial pose
-    and clock.
-    Returns the resting pose, its error from the goal, the movement's sim and wall seconds,
-    and why the run failed (None when the motion finished with exit code 0).
-    """
-    executable, params, sim_seconds, turn_deg = PROCESS_SCENARIOS[scenario]
-    # Let odometry from the previous run's simulator drain, or it would be taken for the start.
-    session.spin_until(lambda: time.monotonic() - (observer.received_at or 0.0) > 0.3, 10.0)
-    observer.restart()
-    motion = sim = None
-    failure = None
+    _, executable, params, sim_seconds, turn_deg = MOTIONS[motion]
+    probe, processes, code = graph.probe('motion_observer', listen_only=True), [], 'no odometry'
     try:
-        sim = children.start('unicycle_sim', publish_clock=True, real_time_factor=rtf)
-        if not session.spin_until(lambda: observer.first is not None, 15.0):
-            raise RuntimeError(f'no odometry from unicycle_sim:\n{tail(children.stop(sim))}')
-        motion = children.start(executable, use_sim_time=True, **params)
-        # Process start and discovery, then at least 2x real time.
-        timeout = 10.0 + sim_seconds / 2.0
-        if not session.spin_until(lambda: motion.poll() is not None, timeout):
-            failure = f'{scenario}: not done after {timeout:.0f} s wall'
-        elif motion.returncode != 0:
-            failure = f'{scenario}: exit code {motion.returncode}'
-        seen = len(observer.odoms)
-        session.spin_until(lambda: len(observer.odoms) > seen + 2 and not observer.moving, 2.0)
+        processes.append(start('unicycle_sim', publish_clock=True, real_time_factor=rtf,
+                               **sim_params))
+        if graph.spin_until(lambda: probe.odom is not None, 15.0):
+            processes.insert(0, start(executable, use_sim_time=True, **params))
+            # In lockstep the pace is the graph's, not rtf's: allow down to real time.
+            exited = graph.spin_until(lambda: processes[0].poll() is not None,
+                                      15.0 + sim_seconds / min(rtf, 1.0))
+            code, seen = processes[0].returncode if exited else 'timeout', len(probe.odoms)
+            graph.spin_until(lambda: len(probe.odoms) > seen + 2 and not is_moving(probe.odom),
+                             2.0)  # the resting pose: once the motion has gone
     finally:
-        for process in (motion, sim):
-            if process is not None:
-                children.stop(process)
-    start_pose, end = observer.first, observer.latest
-    mm, deg = closure((start_pose[0], start_pose[1], start_pose[2] + math.radians(turn_deg)),
-                      end)
-    result = {'end': end, 'error_mm': mm, 'error_deg': deg, 'failure': failure}
-    if failure:
-        result['log_tail'] = tail(children.stop(motion))
-    if observer.move_start and observer.move_end:
-        result['sim_s'] = observer.move_end[0] - observer.move_start[0]
-        result['wall_s'] = observer.move_end[1] - observer.move_start[1]
+        log = ([stop(process) for process in processes] or [''])[0]
+        graph.remove(probe)
+    result = {'exit': code, 'log': log, 'odoms': probe.odoms, 'walls': probe.odom_walls}
+    if probe.odoms:
+        x, y, yaw = pose_of(probe.odoms[0])
+        goal = x, y, math.remainder(yaw + math.radians(turn_deg), 2.0 * math.pi)
+        result.update(goal=goal, end=pose_of(probe.odom))
+        result['error_mm'], result['error_deg'] = closure(goal, result['end'])
+        moving = [i for i, odom in enumerate(probe.odoms) if is_moving(odom)]
+        if moving and moving[-1] + 1 < len(probe.odoms):
+            before, after = max(moving[0] - 1, 0), moving[-1] + 1
+            result['sim_s'] = stamp_s(probe.odoms[after]) - stamp_s(probe.odoms[before])
+            result['wall_s'] = probe.odom_walls[after] - probe.odom_walls[before]
     return result
 
 
-def row_rtf_processes(sizes, children, domain_id, rtf):
-    rtfs = {}
-    errors = {}
-    results = run_process_scenarios(children, domain_id, sizes.process_scenarios, rtf,
-                                    sizes.process_runs)
-    failures = [r['failure'] for runs in results.values() for r in runs if r['failure']]
+def motion_processes(run):
+    with session() as graph:
+        return {motion: [watch_motion(graph, run.start, run.stop, motion, run.rtf)
+                         for _ in range(run.sizes.process_runs)]
+                for motion in run.sizes.process_motions}
+
+
+@row('processes')
+def rtf_processes(run):
+    results = run.once(motion_processes)
+    failed = [f'{m}: {r["exit"]}' for m, runs in results.items() for r in runs if r['exit']]
+    timed = {m: [r for r in runs if not r['exit'] and 'sim_s' in r] for m, runs in results.items()}
+    rtf = {m: sum(r['sim_s'] for r in rs) / sum(r['wall_s'] for r in rs) if rs else math.nan
+           for m, rs in timed.items()}
+    errors = {m: [(r.get('error_mm', math.nan), r.get('error_deg', math.nan)) for r in runs]
+              for m, runs in results.items()}
     # Whether the runs of each motion ended at the same pose (None: one run each).
-    identical = not failures if sizes.process_runs > 1 else None
-    for scenario, runs in results.items():
-        timed = [r for r in runs if not r['failure'] and 'sim_s' in r]
-        wall_s = sum(r['wall_s'] for r in timed)
-        rtfs[scenario] = sum(r['sim_s'] for r in timed) / wall_s if wall_s > 0 else math.nan
-        if identical:
-            identical = all(r['end'] == runs[0]['end'] for r in runs)
-        errors[scenario] = [(r['error_mm'], r['error_deg']) for r in runs]
-    worst_mm = max(mm for runs in errors.values() for mm, _ in runs)
-    worst_deg = max(deg for runs in errors.values() for _, deg in runs)
-    runs_count = sum(len(runs) for runs in results.values())
-    failed = f'; {len(failures)} of {runs_count} runs failed' if failures else ''
-    same = {True: 'yes', False: 'no', None: '- (one run)'}[identical]
-    each = {1: 'one run', 2: 'two runs'}.get(sizes.process_runs, f'{sizes.process_runs} runs')
-    return row(
+    identical = None if run.sizes.process_runs < 2 else not failed and all(
+        r['end'] == runs[0]['end'] for runs in results.values() for r in runs)
+    worst_mm, worst_deg = np.nanmax(list(errors.values()), axis=(0, 1))
+    return Row(
         'real-time factor across processes (sim s / wall s), from odometry',
-        f'{fmt_rtfs(rtfs)}; identical: {same}{failed}',
-        f'clock set to {rtf:g}x', f'>= {TARGET_RTF_PROCESSES:g}x',
-        met(not failures and min(rtfs.values()) >= TARGET_RTF_PROCESSES),
-        f'unicycle_sim (publish_clock, real_time_factor {rtf:g}, 50 Hz) and the motion '
-        'executables as separate processes over DDS, observed from this process; sim and wall '
-        f'seconds from the first to the last movement on odometry; {each} per motion, each '
-        'against a fresh simulator. The simulator steps in lockstep with the motion (it waits '
-        "for the motion's answer to each clock step and for the commands it covers), so "
-        'real_time_factor is only an upper bound and the factor is what the handshake '
-        'sustains: about one round trip between two Python executors per 20 ms step. Worst '
-        f'error over the runs {worst_mm:.3g} mm, {worst_deg:.3g} deg from the goal.'
-        + (f' Failed: {"; ".join(failures)}.' if failures else ''),
-        rtf=rtfs, identical=identical, errors_mm_deg=errors, failures=failures,
-        failure_logs=[r['log_tail'] for runs in results.values() for r in runs
-                      if r['failure']])
+        ', '.join(f'{m} {core.fmt_x(x)}' for m, x in rtf.items()) + '; identical: '
+        + {True: 'yes', False: 'no', None: '- (one run)'}[identical]
+        + (f'; {len(failed)} runs failed' if failed else ''), f'clock set to {run.rtf:g}x',
+        f'unicycle_sim (publish_clock, real_time_factor {run.rtf:g}, 50 Hz) and the motion '
+        'executables over DDS, a fresh simulator each run; sim and wall s from the first to '
+        "the last movement on odometry. The simulator waits for the motion's answer to each "
+        'step, so the factor is one round trip between two Python executors per 20 ms step. '
+        f'Worst error {worst_mm:.3g} mm, {worst_deg:.3g} deg.'
+        + ''.join(f' Failed: {f}.' for f in failed), f'>= {core.TARGET_RTF_PROCESSES:g}x',
+        not failed and min(rtf.values()) >= core.TARGET_RTF_PROCESSES,
+        {'rtf': rtf, 'identical': identical, 'errors_mm_deg': errors, 'failures': failed,
+         'failure_logs': [core.tail(r['log']) for rs in results.values() for r in rs
+                          if r['exit']]})
 
 
-# -- rows 8-10: latency and CPU of one simulator process on wall time ----------------------------
+def sim_process(run):
+    """Measure a unicycle_sim process at 50 Hz on wall time: CPU idle, commanded; latency."""
+    with session() as graph:
+        probe, sim = graph.probe('bench_observer', use_sim_time=False), run.start(
+            'unicycle_sim', rate_hz=50.0)
 
-
-def cpu_seconds(pid):
-    """Return the user + system CPU seconds used so far by process pid (from /proc)."""
-    with open(f'/proc/{pid}/stat') as stat:
-        fields = stat.read().rsplit(')', 1)[1].split()
-    # Fields 14 and 15 of stat(5) (utime, stime) are the 12th and 13th after the ')'.
-    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
-
-
-def cpu_percent(session, pid, seconds):
-    """Measure the CPU use of process pid over `seconds` of wall time, in % of one core."""
-    used = cpu_seconds(pid)
-    wall = time.monotonic()
-    session.spin_for(seconds)
-    return 100.0 * (cpu_seconds(pid) - used) / (time.monotonic() - wall)
-
-
-def rows_sim_process(sizes, children, domain_id):
-    """Measure latency and CPU of one unicycle_sim process on wall time (50 Hz)."""
-    with BenchGraph(domain_id=domain_id, offline=False) as session:
-        observer = session.add(Observer(session.context, commands=True))
-        sim = children.start('unicycle_sim', rate_hz=50.0)
+        def cpu_percent():
+            used, wall = core.cpu_s(sim.pid), time.monotonic()
+            graph.spin_for(run.sizes.cpu_seconds)
+            return 100.0 * (core.cpu_s(sim.pid) - used) / (time.monotonic() - wall)
         try:
-            if not session.spin_until(
-                    lambda: observer.first is not None
-                    and observer.cmd_pub.get_subscription_count() > 0, 15.0):
-                raise RuntimeError(f'no odometry from unicycle_sim:\n{tail(children.stop(sim))}')
-            session.spin_for(sizes.cpu_settle_s)
-            idle = cpu_percent(session, sim.pid, sizes.cpu_seconds)
-
-            # 10 Hz commands from a wall-clock timer in this process.
-            command = [0]
-
-            def send():
-                command[0] += 1
-                observer.send(0.1, 0.2 if command[0] % 2 else 0.3)
-            timer = observer.create_timer(0.1, send, clock=Clock(clock_type=ClockType.STEADY_TIME))
-            busy = cpu_percent(session, sim.pid, sizes.cpu_seconds)
-            timer.cancel()
-            observer.destroy_timer(timer)
-
-            latencies, lost = measure_latency(session, observer, sizes.latency_samples)
+            if not graph.spin_until(lambda: probe.odom is not None
+                                    and probe.cmd_pub.get_subscription_count() > 0, 15.0):
+                raise RuntimeError(f'no odometry from unicycle_sim:\n{run.stop(sim)}')
+            graph.spin_for(run.sizes.cpu_settle_s)
+            idle, sent = cpu_percent(), itertools.count()  # then 10 Hz commands on wall time
+            timer = probe.create_timer(0.1, lambda: probe.send(0.1, (0.2, 0.3)[next(sent) % 2]),
+                                       clock=Clock(clock_type=ClockType.STEADY_TIME))
+            busy = cpu_percent()
+            probe.destroy_timer(timer)
+            latencies, lost, pause = [], 0, random.Random(1)
+            for k in range(run.sizes.latency_samples):
+                angular, sent_at = 0.1 + 0.001 * k, time.monotonic()
+                probe.send(0.0, angular)
+                if graph.spin_until(lambda: twist_of(probe.odom) == (0.0, angular)
+                                    and probe.odom_walls[-1] >= sent_at, 1.0, poll=0.0005):
+                    latencies.append(1000.0 * (probe.odom_walls[-1] - sent_at))
+                else:
+                    lost += 1
+                # A random pause samples every phase of the simulator's 50 Hz odometry timer.
+                graph.spin_for(pause.uniform(0.02, 0.045))
         finally:
-            children.stop(sim)
-    return {
-        'latency': latency_row(latencies, lost),
-        'cpu_idle': row(
-            'unicycle_sim CPU, idle (50 Hz odometry, one subscriber)', f'{idle:.2f} % of a core',
-            f'under 10 Hz cmd_vel: {busy:.2f} %', f'<= {TARGET_IDLE_CPU_PERCENT:g} %',
-            met(idle <= TARGET_IDLE_CPU_PERCENT),
-            f'utime + stime from /proc/<pid>/stat over {sizes.cpu_seconds:g} s of wall time; '
-            'the simulator on wall time, publishing odometry to this process.',
-            idle_percent=idle, commands_percent=busy),
-        'cpu_commands': row(
-            'unicycle_sim CPU under 10 Hz cmd_vel', f'{busy:.2f} % of a core',
-            f'idle: {idle:.2f} %', '-', '-',
-            f'Same process, {sizes.cpu_seconds:g} s with a Twist every 100 ms (alternating '
-            'values) from this process.', idle_percent=idle, commands_percent=busy),
-    }
+            run.stop(sim)
+    return idle, busy, latencies, lost
 
 
-def measure_latency(session, observer, samples):
-    """Send changing Twists; return the ms until odometry first shows each applied, and losses."""
-    rng = random.Random(1)
-    latencies = []
-    lost = 0
-    for k in range(samples):
-        angular = 0.1 + 0.001 * k
-        sent = time.monotonic()
-        observer.send(0.0, angular)
-        if session.spin_until(lambda: twist_of(observer.odom) == (0.0, angular)
-                              and observer.received_at >= sent, 1.0, poll=0.0005):
-            latencies.append(1000.0 * (observer.received_at - sent))
-        else:
-            lost += 1
-        # A random pause samples every phase of the simulator's 50 Hz odometry timer.
-        session.spin_for(rng.uniform(0.02, 0.045))
-    return latencies, lost
-
-
-def latency_row(latencies, lost):
-    p50, p99 = (float(np.percentile(latencies, q)) if latencies else math.nan
-                for q in (50, 99))
-    return row(
+@row('sim')
+def latency(run):
+    _, _, latencies, lost = run.once(sim_process)
+    p50, p99 = np.percentile(latencies, (50, 99)) if latencies else (math.nan, math.nan)
+    return Row(
         'cmd_vel -> odom latency across processes, wall time',
         f'p50 {p50:.1f} ms, p99 {p99:.1f} ms' if latencies else 'no sample',
-        'one odometry period: 20.0 ms',
-        f'p99 <= {TARGET_LATENCY_P99_MS:g} ms', met(p99 <= TARGET_LATENCY_P99_MS and not lost),
-        f'unicycle_sim process at 50 Hz on wall time; this process publishes a Twist with a new '
-        f'value and times the first odometry whose twist equals it ({len(latencies)} samples, '
-        f'{lost} lost, random 20-45 ms pauses). Odometry is published on the 50 Hz timer only, '
-        'so the wait for the next tick (0-20 ms) dominates.',
-        p50_ms=p50, p99_ms=p99, samples=len(latencies), lost=lost,
-        max_ms=float(max(latencies)) if latencies else None)
+        'one odometry period: 20.0 ms', 'unicycle_sim at 50 Hz on wall time; this process '
+        'sends a Twist with a new value and times the first odometry whose twist equals it '
+        f'({len(latencies)} samples, {lost} lost, random 20-45 ms pauses). Odometry comes on '
+        'the 50 Hz timer only, so the wait for its next tick (0-20 ms) dominates.',
+        f'p99 <= {core.TARGET_LATENCY_P99_MS:g} ms',
+        p99 <= core.TARGET_LATENCY_P99_MS and not lost,
+        {'p50_ms': p50, 'p99_ms': p99, 'samples': len(latencies), 'lost': lost,
+         'max_ms': max(latencies, default=None)})
+
+
+@row('sim')
+def cpu_idle(run):
+    idle, busy, _, _ = run.once(sim_process)
+    return Row(
+        'unicycle_sim CPU, idle (50 Hz odometry, one subscriber)', f'{idle:.2f} % of a core',
+        f'under 10 Hz cmd_vel: {busy:.2f} %', 'CPU time of its threads (/proc) over '
+        f'{run.sizes.cpu_seconds:g} s of wall time, on wall time, publishing odometry to this '
+        'process.', f'<= {core.TARGET_IDLE_CPU_PERCENT:g} %',
+        idle <= core.TARGET_IDLE_CPU_PERCENT, {'idle_percent': idle, 'commands_percent': busy})
+
+
+@row('sim')
+def cpu_commands(run):
+    idle, busy, _, _ = run.once(sim_process)
+    return Row(
+        'unicycle_sim CPU under 10 Hz cmd_vel', f'{busy:.2f} % of a core', f'idle: {idle:.2f} %',
+        f'Same process, {run.sizes.cpu_seconds:g} s with a Twist every 100 ms (alternating '
+        'values) from this process.', data={'idle_percent': idle, 'commands_percent': busy})
+
+
+def yaml_list(names):
+    return '[' + ', '.join(names) + ']'
+
+
+def motions_run(run, robots, one_simulator):
+    """
+    Run `robots` odom_out_and_back motions on sim time, then the simulator owning the clock.
+
+    one_simulator: one motion_fleet and one unicycle_sim with ``robots``.  Otherwise a
+    unicycle_sim + motion pair per robot (/robotK), robot 0's simulator owning the clock, all
+    other nodes in its lockstep, commands TwistStamped (stamped:=true) so that a simulator
+    applies each at the step it was sent for even when it overtakes that /clock.  The clock
+    owner starts once every cmd_vel is connected (2N Python processes on a small machine can
+    be off the CPU for seconds).  Returns the slowest motion's sim s / wall s and the worst
+    closure (from their closing lines), how many failed, and the wall s from the owner's start
+    to the last exit.
+    """
+    names = [f'robot{k}' for k in range(robots)]
+    motion = {'use_sim_time': True, 'start_timeout': 120.0, **run.sizes.scaling_motion}
+    if one_simulator:
+        owner, followers = {'robots': yaml_list(names)}, []
+        motions = [run.start('motion_fleet', robots=yaml_list(names),
+                             motions='[odom_out_and_back]', **motion)]
+    else:
+        owner = {'namespace': '/robot0', 'stamped': True}
+        followers = [run.start('unicycle_sim', namespace=f'/{name}', use_sim_time=True,
+                               stamped=True) for name in names[1:]]
+        motions = [run.start('odom_out_and_back', namespace=f'/{name}', stamped=True, **motion)
+                   for name in names]
+    with session() as graph:
+        probe = graph.probe('bench_probe', listen_only=True)
+        try:
+            if not graph.spin_until(lambda: all(
+                    probe.count_publishers(f'/{name}/cmd_vel') and (
+                        one_simulator or k == 0 or probe.count_subscribers(f'/{name}/cmd_vel'))
+                    for k, name in enumerate(names)), 30.0 + 2.0 * robots, poll=0.05):
+                raise RuntimeError(f'{robots} robots did not come up')
+            started = time.monotonic()
+            followers.append(run.start('unicycle_sim', publish_clock=True, **owner,
+                                       real_time_factor=run.rtf, lockstep_timeout=TIMEOUT_S))
+            done = graph.spin_until(lambda: all(m.poll() is not None for m in motions),
+                                    TIMEOUT_S + 4.0 * robots, poll=0.05)
+            wall_s = max(m.exited_at for m in motions) - started if done else math.nan
+        finally:
+            outputs = [run.stop(process) for process in motions + followers][:len(motions)]
+    closings = [tuple(map(float, m.groups())) for out in outputs for m in DONE.finditer(out)]
+    return {'rtf': min((s / w if w > 0 else math.inf for s, w, _, _ in closings),
+                       default=math.nan),
+            'worst_mm': max((mm for _, _, mm, _ in closings), default=math.nan),
+            'worst_deg': max((deg for *_, deg in closings), default=math.nan),
+            'failed': robots - len(closings), 'robots': robots, 'wall_s': wall_s,
+            'exit_codes': [m.returncode for m in motions],
+            'logs': [core.tail(out, 30) for out in outputs] if len(closings) < robots else []}
+
+
+def drive_text(run):
+    return 'odom_out_and_back (' + ', '.join(
+        f'{k} {v:g}' for k, v in run.sizes.scaling_motion.items()) + ')'
+
+
+def scaling(run):
+    """Return rows 11 and 12's runs and texts."""
+    one = {n: run.once(one_process, n) for n in run.sizes.robots}
+    many = {n: run.once(motions_run, n, False) for n in run.sizes.robots_processes}
+    return one, many, core.by_n(one), ', '.join(
+        f'N={n}: {core.fmt_x(m["rtf"])} ({m["worst_mm"]:.3f} mm'
+        + (f', {m["failed"]} not done)' if m['failed'] else ')') for n, m in many.items())
+
+
+@row('scaling')
+def scaling_one_process(run):
+    one, _, one_text, many_text = scaling(run)
+    return Row(
+        'N robots in one process, real-time factor', one_text, 'as 2N processes: ' + many_text,
+        f'Simulator + {drive_text(run)} pairs in namespaces /robotK, all nodes in one '
+        "EventsExecutor; robot 0's simulator owns /clock and is stepped in lockstep, the "
+        f'others run on sim time. Over {run.sizes.scaling_window_s:g} s of simulated time, '
+        'exact.', data={'rtf': one})
+
+
+@row('scaling')
+def scaling_processes(run):
+    _, many, one_text, many_text = scaling(run)
+    return Row(
+        'N robots as 2N processes, real-time factor (worst closure)', many_text,
+        'one process: ' + one_text,
+        f"unicycle_sim and {drive_text(run)} per robot (-r __ns:=/robotK). Robot 0's "
+        f'simulator owns /clock (real_time_factor {run.rtf:g}, a bound), starting once all '
+        'others are connected; they all take part in its lockstep, so it waits for 2N-1 '
+        "answers at every step. Commands are TwistStamped. Factor: the slowest motion's sim "
+        "s / wall s; error: the largest closure error; both from the motions' closing lines "
+        f'(not done: none within {TIMEOUT_S:g} s + 4 s per robot of wall time).',
+        data={'rtf': {n: m['rtf'] for n, m in many.items()},
+              'worst_error_mm': {n: m['worst_mm'] for n, m in many.items()},
+              'not_done': {n: m['failed'] for n, m in many.items()}, 'runs': many})

@@ -1,0 +1,154 @@
+# Copyright 2026 motion_challenges contributors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""The table's Row, the registry of rows, the Run (sizes, processes, measurements), formats."""
+
+from dataclasses import dataclass
+from dataclasses import field
+import math
+import os
+import subprocess
+from types import SimpleNamespace
+
+from sim_diffdrive import harness
+
+NS = 1_000_000_000
+# Targets: goals of the project, reported as met or missed, never asserted.
+TARGET_YAW_DEG, TARGET_CLOSURE_MM = 0.01, 1.0
+TARGET_RTF_IN_PROCESS, TARGET_RTF_PROCESSES = 25.0, 10.0
+TARGET_LATENCY_P99_MS = 20.0 + 2.0  # one odometry period at 50 Hz, plus 2 ms
+TARGET_IDLE_CPU_PERCENT = 2.0
+TARGET_FLEET_CORES = 1.0  # 64 robots at 50 Hz in real time within one core
+TARGET_PER_ROBOT_RATIO = 2.0  # a robot costs at most 2 Odometry publishes
+SIZES = {  # each: (make bench, --quick)
+    'starts': (20, 2), 'laps': (100, 100), 'latency_samples': (200, 5),
+    'circle_cycles': (10, 2), 'circle_half_period': (15.0, 3.0),
+    'cpu_settle_s': (0.5, 0.2), 'cpu_seconds': (5.0, 0.2),  # wall s to settle, per sample
+    # The three default motions of the real-time factor rows, shortened with --quick.
+    'circle_rtf': ({'cycles': 1, 'half_period': 15.0}, {'cycles': 1, 'half_period': 0.5}),
+    'out_and_back_rtf': ({}, {'goal_distance': 0.05, 'angular_speed': 4.0, 'pause': 0.0}),
+    'process_motions': (('rotate', 'circle', 'out_and_back'), ('rotate',)),
+    'process_runs': (2, 1),  # two show whether runs are identical
+    'robots': ((1, 4, 16), (1, 2)), 'robots_processes': ((1, 4, 16), (1,)),
+    # What each robot of rows 11, 12 and 17 drives: odom_out_and_back, shortened.
+    'scaling_motion': ({'goal_distance': 0.2, 'angular_speed': 2.0, 'pause': 0.2},
+                       {'goal_distance': 0.1, 'angular_speed': 4.0, 'pause': 0.1, 'legs': 1}),
+    'scaling_window_s': (2.0, 0.5),
+    'fleet_robots': ((1, 16, 64, 256), (1, 4)), 'fleet_free_robots': ((1, 16, 64, 256), (4,)),
+    'fleet_settle_s': (0.5, 0.05), 'fleet_window_s': (3.0, 0.1),
+    'fleet_messages': (10000, 500),  # Odometry publishes for rclpy's cost per message
+    'fleet_motion_robots': (16, 1),  # robots_processes[-1]: row 17 reuses row 12's pairs
+}
+ROWS = {}  # key -> (group, function(run) -> Row), in table order
+
+
+def sizes(quick):
+    return SimpleNamespace(quick=quick, **{name: both[quick] for name, both in SIZES.items()})
+
+
+def row(group):
+    """Register a function as the table's next row; its name is the row's key."""
+    def register(measure):
+        ROWS[measure.__name__] = (group, measure)
+        return measure
+    return register
+
+
+@dataclass
+class Row:
+    """A row's cells (met: None without a target), its note and its raw numbers."""
+
+    measure: str
+    project: str
+    reference: str
+    note: str
+    target: str = '-'
+    met: bool = None
+    data: dict = field(default_factory=dict)
+
+    def report(self):
+        result = '-' if self.met is None else 'met' if self.met else 'missed'
+        return {'measure': self.measure, 'project': self.project, 'reference': self.reference,
+                'target': self.target, 'result': result, 'note': self.note, 'data': self.data}
+
+
+class Run:
+    """One run: its sizes, the processes it started, what its rows measured."""
+
+    def __init__(self, quick=False, rtf=100.0):
+        self.sizes, self.rtf, self.running, self.measurements = sizes(quick), rtf, [], {}
+
+    def once(self, measure, *args, **kwargs):
+        """Return measure(run, *args, **kwargs), measured at its first use in this run."""
+        key = (measure.__name__, args, tuple(kwargs.items()))
+        if key not in self.measurements:
+            self.measurements[key] = measure(self, *args, **kwargs)
+        return self.measurements[key]
+
+    def measured(self, measure, *args):
+        return (measure.__name__, args, ()) in self.measurements
+
+    def start(self, executable, *args, namespace=None, stdin=subprocess.DEVNULL, **params):
+        """Start an executable (harness.start) with ROS parameters, bools as true/false."""
+        params = [f'{k}:={str(v).lower() if isinstance(v, bool) else v}' for k, v in
+                  params.items()]
+        self.running.append(harness.start(
+            executable, *args, *harness.ros_params(*params, namespace=namespace), stdin=stdin))
+        return self.running[-1]
+
+    def stop(self, process):
+        """Stop a process as Ctrl-C does (a motion then stops its robot); return its output."""
+        if process in self.running:
+            self.running.remove(process)
+            harness.stop(process, timeout=3.0)
+        return process.output()
+
+    def stop_all(self):
+        for process in list(self.running):
+            self.stop(process)
+
+
+def cpu_s(pid):
+    """Return the CPU seconds process pid has used, every thread (schedstat: in ns, not ticks)."""
+    total = 0
+    for task in os.listdir(f'/proc/{pid}/task'):
+        try:
+            with open(f'/proc/{pid}/task/{task}/schedstat') as schedstat:
+                total += int(schedstat.read().split()[0])
+        except ProcessLookupError:
+            pass  # a thread that just ended
+    return total / NS
+
+
+def tail(output, lines=12):
+    return '\n'.join('    ' + line for line in output.splitlines()[-lines:])
+
+
+def fmt_small(value, decimals=4):
+    """Format with fixed decimals, or in scientific notation when that would show zeros."""
+    small = value != 0.0 and abs(value) < 10.0 ** -(decimals - 1)
+    return f'{value:.1e}' if small else f'{value:.{decimals}f}'
+
+
+def fmt_closure(mm, deg):
+    return f'{fmt_small(mm, 3)} mm, {fmt_small(deg)} deg'
+
+
+def fmt_x(factor):
+    return f'{factor:.1f}x' if math.isfinite(factor) else '-'
+
+
+def by_n(values, fmt=fmt_x):
+    """Format {N: value} as 'N=1: 2.0x, N=4: ...'."""
+    return ', '.join(f'N={n}: {fmt(value)}' for n, value in values.items())
