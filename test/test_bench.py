@@ -80,7 +80,7 @@ def test_start_times_are_spread_over_one_second_on_the_step():
 
 
 def test_original_rotate_against_the_simulator_matches_the_hand_computed_error():
-    errors = one_process.rotate_original(core.Run(quick=True))[:1]
+    errors = one_process.rotations(core.Run(quick=True), 'original')[:1]
     assert errors == [pytest.approx(29.939, abs=1e-3)]
 
 

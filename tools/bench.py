@@ -28,6 +28,7 @@ import os
 from pathlib import Path
 import signal
 import sys
+import textwrap
 import time
 
 from benchmark import fleet  # noqa: F401  (each module registers its rows, in table order)
@@ -51,13 +52,8 @@ def print_table(rows):
     widths = [min(max(len(cells[i]) for cells in table), w) for i, w in
               enumerate(COLUMNS.values())]
     for cells in table:
-        wrapped = [[''] for _ in cells]
-        for lines, cell, width in zip(wrapped, cells, widths):
-            for word in cell.split(' '):
-                if lines[-1] and len(lines[-1]) + 1 + len(word) > width:
-                    lines.append(word)
-                else:
-                    lines[-1] = f'{lines[-1]} {word}' if lines[-1] else word
+        wrapped = [textwrap.wrap(cell, width, break_long_words=False, break_on_hyphens=False)
+                   or [''] for cell, width in zip(cells, widths)]
         for i in range(max(map(len, wrapped))):
             print(' | '.join((w[i] if i < len(w) else '').ljust(width)
                              for w, width in zip(wrapped, widths)).rstrip())

@@ -15,24 +15,18 @@
 """
 Stress the simulator longer than a test can: a cmd_vel flood into ``unicycle_sim``.
 
-``python tools/stress.py [--rate 10000] [--seconds 10] [--odom-rate 50]`` (``make stress``)
-starts ``unicycle_sim`` on wall time (cmd_vel timeout off), floods its cmd_vel from a publisher
-process and records odometry here.  It prints the rate reached, the odometry rate before and
-during the flood, the simulator's CPU and resident memory (RSS) over time, and whether the last
-command won; exit 0 if odometry kept its rate within 10 %, RSS did not grow (< 1 MB after the
-first second) and the last command won, 1 otherwise.
-
-``python tools/stress.py flood --rate R --seconds S [--final V W] [--ros-args ...]`` is the
-publisher (test_faults uses it too): it waits for a cmd_vel subscriber, publishes at R Hz (0:
-as fast as it can) for S seconds, cycling through 100 pre-serialized commands (rclpy's fastest
-publish: no conversion per message), then --final once, waits until it is acknowledged and
-prints a JSON line of what it sent.  Both run on a ROS domain of their own (random in 1..100,
-or SIM_GRAPH_DOMAIN_ID), discovery on this machine only.
+``python tools/stress.py [--rate 10000] [--seconds 10]`` (``make stress``) floods a wall-time
+``unicycle_sim`` (cmd_vel timeout off) from a publisher process and prints the rate reached,
+odometry's rate idle and during the flood, the simulator's CPU and memory (RSS) over time and
+whether the last command won; exit 0 if odometry kept its rate within 10 %, RSS grew less
+than 1 MB after the first second and the last command won.  ``python tools/stress.py flood
+--rate R --seconds S [--final V W] [--ros-args ...]`` is the publisher (test_faults uses it):
+R Hz (0: flat out) of 100 pre-serialized Twists once a subscriber is there, then --final,
+and a JSON line of what it sent.  On a ROS domain of its own, discovery on this machine only.
 """
 
 import argparse
 import json
-import signal
 import sys
 import time
 
@@ -94,34 +88,29 @@ def stress(argv):
     parser.add_argument('--odom-rate', type=float, default=50.0, help='simulator rate_hz')
     args = parser.parse_args(argv)
     from benchmark.core import cpu_s
+    from benchmark.core import Run
     from sim_diffdrive import harness
 
-    graph = harness.SimGraph()  # on a domain of its own, which the processes started share
-    processes = []
+    graph, run = harness.SimGraph(), Run()  # a domain of its own, which the processes share
     try:
-        processes.append(harness.start('unicycle_sim', *harness.ros_params(
-            f'rate_hz:={args.odom_rate}', 'cmd_vel_timeout:=0.0')))
-        graph.wait_for_odometry(20.0, process=processes[0])
-        odoms = graph.odometry.odoms  # kept: read once the graph is closed
+        sim = run.start('unicycle_sim', rate_hz=args.odom_rate, cmd_vel_timeout=0.0)
+        odoms = graph.wait_for_odometry(20.0, process=sim) and graph.odometry.odoms
         graph.spin_for(3.0)
-        idle_end, pid = time.time(), processes[0].pid
-        rss, cpu = [(idle_end, rss_mb(pid))], cpu_s(pid)
-        processes.append(harness.start(
-            sys.executable, __file__, 'flood', '--rate', str(args.rate), '--seconds',
-            str(args.seconds), '--final', *map(str, FINAL)))
-        while processes[1].poll() is None:
+        idle_end = time.time()
+        rss, cpu = [(idle_end, rss_mb(sim.pid))], cpu_s(sim.pid)
+        flood_ = run.start(sys.executable, __file__, 'flood', '--rate', str(args.rate),
+                           '--seconds', str(args.seconds), '--final', *map(str, FINAL))
+        while flood_.poll() is None:
             graph.spin_for(0.05)
             if time.time() >= rss[-1][0] + 1.0:  # once a second while flooding
-                rss.append((time.time(), rss_mb(pid)))
-        cpu = cpu_s(pid) - cpu
+                rss.append((time.time(), rss_mb(sim.pid)))
+        cpu = cpu_s(sim.pid) - cpu
         graph.spin_for(1.0)
-        rss.append((time.time(), rss_mb(pid)))
-        final = harness.twist_of(odoms[-1])
-        report = json.loads(processes[1].output().strip().splitlines()[-1])
+        rss.append((time.time(), rss_mb(sim.pid)))
+        final, report = harness.twist_of(odoms[-1]), json.loads(
+            flood_.output().strip().splitlines()[-1])
     finally:
-        for process in reversed(processes):  # the flood killed, the simulator as Ctrl-C does
-            harness.stop(process, signal.SIGINT if process is processes[0] else signal.SIGKILL,
-                         timeout=10.0)
+        run.stop_all()
         graph.close()
     if 'error' in report:
         print(f'flood failed: {report}')

@@ -22,7 +22,6 @@ message; N motions against one simulator and one ``motion_fleet`` next to row 12
 
 import math
 import os
-import signal
 import sys
 import time
 
@@ -39,14 +38,12 @@ from nav_msgs.msg import Odometry
 import rclpy
 from rclpy.clock import Clock
 from rclpy.clock import ClockType
+from rclpy.executors import ExternalShutdownException
 from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
-from rclpy.signals import SignalHandlerOptions
-from sim_diffdrive.harness import stamp_s
-from sim_diffdrive.harness import twist
-from sim_diffdrive.harness import twist_of
+from sim_diffdrive import harness
 from sim_diffdrive.participant import take_part
 from sim_diffdrive.sim.node import PARAMETERS
 
@@ -73,13 +70,13 @@ def publish_cost(pub, count):
 
 
 def window(graph, pid, first, seconds):
-    """Measure CPU s of pid, wall s, steps and sim s (r0's odometry) over `seconds`, 5 steps."""
+    """Measure CPU s of pid, wall s, steps and sim s (r0's odometry): `seconds`, 5 steps."""
     cpu, steps, wall = core.cpu_s(pid), len(first.odoms), time.monotonic()
-    stamp = stamp_s(first.odom)
+    stamp = harness.stamp_s(first.odom)
     graph.spin_until(lambda: time.monotonic() - wall >= seconds
                      and len(first.odoms) - steps >= 5, seconds + 10.0, poll=0.005)
     return {'cpu_s': core.cpu_s(pid) - cpu, 'wall_s': time.monotonic() - wall,
-            'steps': len(first.odoms) - steps, 'sim_s': stamp_s(first.odom) - stamp}
+            'steps': len(first.odoms) - steps, 'sim_s': harness.stamp_s(first.odom) - stamp}
 
 
 def start_sims(run, graph, counts, free_clock):
@@ -128,7 +125,7 @@ def measure_sim(run, graph, robots, sim, free_clock):
             # come faster than a commander of 256 robots handles one.  So: join at real time.
             real_time_factor(1.0)
         load = start_load(run, 'lockstep' if free_clock else 'wall', robots, namespace)
-        if not graph.spin_until(lambda: last.odom and twist_of(last.odom) != (0.0, 0.0) and (
+        if not graph.spin_until(lambda: harness.is_moving(last.odom) and (
                 not free_clock or status(load)['joined']), 30.0, poll=0.005):
             raise RuntimeError(f'the load did not drive {namespace}:\n{run.stop(load)}')
         if free_clock:
@@ -145,12 +142,10 @@ def measure_sim(run, graph, robots, sim, free_clock):
 
 
 def start_load(run, *args):
-    """Start load(*args) in a Python process of its own."""
     return run.start(sys.executable, '-c', LOAD, *map(str, args))
 
 
 def status(load):
-    """Return the load process's latest status line, as numbers."""
     lines = [line.split() for line in load.output().splitlines() if line.startswith('load ')]
     _, ticks, heard, joined = lines[-1] if lines else ('load', 0, 0, 0)
     return {'ticks': int(ticks), 'heard': int(heard), 'joined': joined == '1'}
@@ -195,7 +190,8 @@ class Commander(Node):
         super().__init__('bench_fleet_commander', namespace=namespace, enable_rosout=False,
                          parameter_overrides=[Parameter('use_sim_time', value=sim_time)])
         self.pubs = [self.create_publisher(Twist, f'r{k}/cmd_vel', 10) for k in range(robots)]
-        self.twists, self.counts, self.matched = (twist(0.1, 0.2), twist(0.1, 0.3)), counts, False
+        self.twists = harness.twist(0.1, 0.2), harness.twist(0.1, 0.3)
+        self.counts, self.matched = counts, False
         self.create_timer(1.0 / RATE_HZ, self.send)
         self.participant = take_part(self) if sim_time else None
 
@@ -212,19 +208,16 @@ class Commander(Node):
 
 def load(mode, robots, namespace):
     """
-    Load a simulator, in a process of its own (so that the simulator's CPU is its own).
+    Load a simulator from a process of its own (so that the simulator's CPU is its own).
 
     ``wall``: a Twist to robots namespace/r0 ... r<robots-1> at 50 Hz on wall time;
-    ``lockstep``: the same on simulated time, taking part in the lockstep of the simulator
-    owning /clock, which then applies every command at every step before the next; ``listen``:
-    subscribed to bench_odom (rclpy's cost with a reader).  The commands alternate between two
-    values, so the simulator integrates piecewise at each.  Prints ``load <command rounds>
-    <odometry heard> <1 when taking part in a lockstep>`` every 10 ms until SIGINT or SIGTERM.
+    ``lockstep``: the same on simulated time, in the lockstep of the simulator owning /clock,
+    which then applies every command at every step; ``listen``: only subscribed to bench_odom.
+    The commands alternate between two values, so the simulator integrates piecewise at each.
+    Prints ``load <command rounds> <odometry heard> <1 when in a lockstep>`` every 10 ms.
     """
-    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
-    stop, counts, executor = [], {'ticks': 0, 'heard': 0}, EventsExecutor()
-    for signum in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(signum, lambda *_: stop.append(True))
+    rclpy.init()
+    counts, executor = {'ticks': 0, 'heard': 0}, EventsExecutor()
     node = Node('bench_load', enable_rosout=False)
     node.create_subscription(Odometry, 'bench_odom', lambda _: counts.update(
         heard=counts['heard'] + 1), 10)
@@ -237,11 +230,10 @@ def load(mode, robots, namespace):
     for each in filter(None, (node, commander)):
         executor.add_node(each)
     try:
-        while not stop:
+        while rclpy.ok():  # (EventsExecutor.spin() runs no timer in rclpy 7.1.6)
             executor.spin_once(timeout_sec=0.01)
-    finally:
-        executor.shutdown()
-        rclpy.try_shutdown()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
 
 
 def cores(w):

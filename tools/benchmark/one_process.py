@@ -13,11 +13,11 @@
 # limitations under the License.
 
 """
-Rows 1-6 and 11's runs: the motion nodes and the originals against the simulator node.
+Rows 1-6 (and row 11's runs): the motion nodes and the originals in one process, in lockstep.
 
-In one process, stepped in lockstep (``lockstep_graph``), so results are exact whatever the
-machine's load: accuracy against the reproduced originals, the exact arc against Euler, and the
-real-time factor of the motions, one robot or N.
+Stepped by the harness (``lockstep_graph``), so the results are exact whatever the machine's
+load; the originals are played on the kinematic model first, and their ticks then replayed to
+the simulator by a harness Probe.
 """
 
 from contextlib import contextmanager
@@ -53,10 +53,10 @@ DISCOVERY = 'ROS_AUTOMATIC_DISCOVERY_RANGE'
 @contextmanager
 def lockstep_graph(executor_class=EventsExecutor, namespace=None, **sim_params):
     """
-    Yield a SimGraph holding a simulator it steps, on a context of its own with discovery off.
+    Yield a SimGraph holding a simulator it steps, on a context of its own, discovery off.
 
     The nodes of one context match without discovery, and no other run on this machine can add
-    to the graph's message count.  No probe: pose() reads what the odometry reports.
+    to the graph's message count.  No probe on odometry: pose() reads the simulated robot.
     """
     context, saved = Context(), os.environ.get(DISCOVERY)
     os.environ[DISCOVERY] = 'OFF'
@@ -78,92 +78,82 @@ def lockstep_graph(executor_class=EventsExecutor, namespace=None, **sim_params):
 
 
 def pose(graph):
-    """Return the stepped simulator's (first) robot's (x, y, yaw)."""
     fleet = graph.clock_owner.fleet
     return float(fleet.x[0]), float(fleet.y[0]), float(fleet.yaw[0])
 
 
-def drive(graph, done, rest_steps, begin):
-    """Step until done() after begin(), then rest_steps more; return poses, sim s, wall s."""
+def drive(graph, node, rest_steps, begin):
+    """Step until node is done after begin(), and rest_steps more; return poses, sim s, s."""
     start, steps, wall = pose(graph), graph.steps, time.perf_counter()
     begin()
-    graph.step_until(done, 600.0)
+    graph.step_until(lambda: node.done if hasattr(node, 'done') else not node.playing, 600.0)
     graph.step(rest_steps)
     wall = time.perf_counter() - wall
+    if getattr(node, 'exit_code', 0) != 0:
+        raise RuntimeError(f'{node.get_name()} exited with {node.exit_code}')
     return start, pose(graph), (graph.steps - steps) * graph.step_ns / core.NS, wall
 
 
-def finished(node, result):
-    if node.exit_code != 0:
-        raise RuntimeError(f'{node.get_name()} exited with {node.exit_code}')
-    return result
-
-
-def play(graph, probe, rate_hz, script):
-    """Play an original script (on the model first, for its ticks) on probe; drive()'s."""
+def play(graph, script, rate_hz, probe=None):
+    """Play an original script on the model, then its ticks from a Probe; drive()'s."""
+    probe = probe or graph.probe('original')
     robot = originals.ModelRobot(graph.now_ns + round(core.NS / rate_hz))
     robot.play(script(robot), rate_hz)
-    probe.script_done_at = None
-    return drive(graph, lambda: not probe.playing, 2, lambda: probe.play(
-        [(v, w, 1) for v, w in robot.ticks], 1.0 / rate_hz))
+    probe.script_done_at = None  # playing again
+    return drive(graph, probe, 2, lambda: probe.play([(*tick, 1) for tick in robot.ticks],
+                                                     1.0 / rate_hz))
 
 
-def rotate_project(run, mode):
-    """Return the yaw errors [deg] of rotate_robot in mode, from run.sizes.starts starts."""
+def step_to(graph, t_ns):
+    graph.step((t_ns - graph.now_ns) // graph.step_ns)
+
+
+def rotations(run, mode):
+    """Return the yaw errors [deg] of rotate_robot in mode (or the original) per start."""
     errors = []
-    with lockstep_graph() as graph:
-        for start_ns in originals.start_times(run.sizes.starts, 0.02, 1.0):
-            node = graph.node(RotateRobot, mode=mode)
-            graph.step()  # the new node hears the clock
-            # Its first tick primes the connection with a zero Twist, the second starts.
-            graph.step((start_ns - 2 * round(node.period * core.NS) - graph.now_ns)
-                       // graph.step_ns)
-            start, end, _, _ = finished(node, drive(graph, lambda: node.done, 5,
-                                                    lambda: node.start(ROTATION)))
-            if node.start_ns != start_ns:
-                raise RuntimeError(f'rotate_robot ({mode}) started at {node.start_ns} ns')
-            errors.append(originals.yaw_error_deg(start[2], end[2], GOAL))
-            graph.remove(node)
-    return errors
-
-
-def rotate_original(run):
-    """Return the yaw errors [deg] of the original algorithm, from run.sizes.starts starts."""
-    errors = []
-    # A 20 Hz simulator puts the start offsets (multiples of 50 ms) on its steps; it integrates
-    # exactly between commands, so its rate does not change the pose.
-    with lockstep_graph(rate_hz=20.0) as graph:
-        probe = graph.probe('original')
-        for start_ns in originals.start_times(run.sizes.starts, 0.05, 1.0):
-            graph.step((start_ns - core.NS // 10 - graph.now_ns) // graph.step_ns)
-            start, end, _, _ = play(graph, probe, 10.0, lambda robot: originals.original_rotate(
-                robot, *astuple(ROTATION)))
+    # The original's 20 Hz simulator puts its starts (0.05 s apart) on its steps; the rate
+    # does not change the pose (exact between commands).
+    with lockstep_graph(rate_hz=20.0 if mode == 'original' else 50.0) as graph:
+        probe = graph.probe('original') if mode == 'original' else None
+        step = 0.05 if probe else 0.02
+        for start_ns in originals.start_times(run.sizes.starts, step, 1.0):
+            if probe:
+                step_to(graph, start_ns - core.NS // 10)
+                start, end, _, _ = play(graph, lambda robot: originals.original_rotate(
+                    robot, *astuple(ROTATION)), 10.0, probe)
+            else:
+                node = graph.node(RotateRobot, mode=mode)
+                graph.step()  # the new node hears the clock
+                # Its first tick primes the connection with a zero Twist, the second starts.
+                step_to(graph, start_ns - 2 * round(node.period * core.NS))
+                start, end, _, _ = drive(graph, node, 5, lambda: node.start(ROTATION))
+                if node.start_ns != start_ns:
+                    raise RuntimeError(f'rotate_robot ({mode}) started at {node.start_ns} ns')
+                graph.remove(node)
             errors.append(originals.yaw_error_deg(start[2], end[2], GOAL))
     return errors
 
 
-def play_original(script, rate_hz):
+def original(run, script, rate_hz):
     """Play an original script once against a simulator stepping at its rate; drive()'s."""
     with lockstep_graph(rate_hz=rate_hz) as graph:
-        probe = graph.probe('original')
         graph.step()
-        return play(graph, probe, rate_hz, script)
+        return play(graph, script, rate_hz)
 
 
-def motion_run(run, executor, motion, index=0, rate_hz=50.0, **params):
-    """Run motion (of MOTIONS; index tells runs apart) to its end and 5 steps more; drive()'s."""
+def motion(run, executor, name, index=0, rate_hz=50.0, **params):
+    """Run a motion of MOTIONS (index: which run) to its end and 5 steps more; drive()'s."""
     with lockstep_graph(EXECUTORS[executor], rate_hz=rate_hz) as graph:
-        node = graph.node(MOTIONS[motion], **params)
+        node = graph.node(MOTIONS[name], **params)
         graph.wait_for_discovery()
-        return finished(node, drive(graph, lambda: node.done, 5,
-                                    lambda: motion == 'rotate' and node.start(ROTATION)))
+        return drive(graph, node, 5, lambda: name == 'rotate' and node.start(ROTATION))
 
 
-def default_motion(run, executor, motion, index=0):
-    """Run one of the three default motions of the real-time factor rows (see SIZES)."""
+def default_motion(run, executor, name, index=0):
+    """Run a default motion of the real-time factor rows (shortened with --quick)."""
     params = {'rotate': {'mode': 'timed'}, 'circle': run.sizes.circle_rtf,
-              'out_and_back': run.sizes.out_and_back_rtf}[motion]
-    return run.once(motion_run, executor, motion, index, **params)
+              'out_and_back': run.sizes.out_and_back_rtf}[name]
+    return run.once(motion, executor, name, index, **params)
 
 
 def one_process(run, robots):
@@ -181,23 +171,21 @@ def one_process(run, robots):
 
 
 def fmt_deg(values):
-    mean, worst = (core.fmt_small(v) for v in (sum(values) / len(values), max(values)))
-    return f'mean {mean}, max {worst} deg'
+    return (f'mean {core.fmt_small(sum(values) / len(values))}, max '
+            f'{core.fmt_small(max(values))} deg')
 
 
 @row('rotate')
 def rotate_timed(run, mode='timed'):
-    errors, original = run.once(rotate_project, mode), run.once(rotate_original)
+    errors, reference = run.once(rotations, mode), run.once(rotations, 'original')
     return Row(
         f'rotate 90 deg cw at 60 deg/s, yaw error, {mode} mode, {run.sizes.starts} starts',
-        fmt_deg(errors), f'original: {fmt_deg(original)}',
-        'As the row above, with rotate_robot in odom mode (closed loop on odometry).'
-        if mode == 'odom' else 'Starts spread over one second (project: on the 20 ms step of '
-        'the 50 Hz simulator; original: 0.00, 0.05, ... s past a whole second). Original = '
-        'rotate_robot.py reproduced: 3.14/180, t0 and now in whole seconds, 10 Hz ticks, stop '
-        'once the estimate reaches the goal (topic and final stop fixed). In-process lockstep.',
+        fmt_deg(errors), f'original: {fmt_deg(reference)}', 'As row 1, closed loop on odometry.'
+        if mode == 'odom' else 'Starts spread over one second. Original: rotate_robot.py '
+        'reproduced (3.14/180, t0 and now in whole seconds, 10 Hz ticks; topic and final stop '
+        'fixed). In-process lockstep, yaw from the simulator.',
         f'<= {core.TARGET_YAW_DEG} deg', max(errors) <= core.TARGET_YAW_DEG,
-        {'project_errors_deg': errors, 'original_errors_deg': original})
+        {'project_errors_deg': errors, 'original_errors_deg': reference})
 
 
 @row('rotate')
@@ -208,39 +196,35 @@ def rotate_odom(run):
 @row('out_and_back')
 def out_and_back_closure(run):
     mm, deg = originals.closure(*default_motion(run, 'events', 'out_and_back')[:2])
-    ref_mm, ref_deg = originals.closure(*play_original(
-        originals.rbx1_timed_out_and_back, 50.0)[:2])
-    (drive_ticks, turn, turned), slow = originals.rbx1_ticks(), originals.rbx1_ticks(
-        angular_speed=0.5)[2]
+    ref_mm, ref_deg = originals.closure(*original(
+        run, originals.rbx1_timed_out_and_back, 50.0)[:2])
+    ticks, turn, turned = originals.rbx1_ticks()
     changed = ', '.join(f'{k}={v}' for k, v in run.sizes.out_and_back_rtf.items())
     return Row(
         'timed out-and-back (1 m, pi, 2 legs), closure', core.fmt_closure(mm, deg),
         f'rbx1 ticks: {core.fmt_closure(ref_mm, ref_deg)}',
         f'Project: timed_out_and_back ({changed or "defaults"}), in-process lockstep. rbx1 at '
-        f'50 Hz on sim time: drive int(1.0/0.2*50) = {drive_ticks} ticks (exact), turn '
-        f'int(pi*50) = {turn} ticks = {turned:.2f} rad, {math.degrees(math.pi - turned):.4f} '
-        'deg short per turn. Ticks come from goal_angle, not the duration: at 0.5 rad/s the '
-        f'same ticks would turn {math.degrees(slow):.1f} deg.',
-        f'<= {core.TARGET_CLOSURE_MM:g} mm', mm <= core.TARGET_CLOSURE_MM,
-        {'project_mm': mm, 'project_deg': deg, 'rbx1_mm': ref_mm, 'rbx1_deg': ref_deg,
-         'rbx1_drive_ticks': drive_ticks, 'rbx1_turn_ticks': turn})
+        f'50 Hz: drive int(1.0/0.2*50) = {ticks} ticks, turn int(pi*50) = {turn} ticks = '
+        f'{turned:.2f} rad ({math.degrees(math.pi - turned):.4f} deg short per turn: ticks '
+        'from goal_angle, not from the duration).', f'<= {core.TARGET_CLOSURE_MM:g} mm',
+        mm <= core.TARGET_CLOSURE_MM, {'project_mm': mm, 'project_deg': deg, 'rbx1_mm': ref_mm,
+                                       'rbx1_deg': ref_deg, 'rbx1_drive_ticks': ticks,
+                                       'rbx1_turn_ticks': turn})
 
 
 @row('circle')
 def circle_closure(run):
     cycles, half = run.sizes.circle_cycles, run.sizes.circle_half_period
-    # The simulator steps at the 10 Hz of both controllers (exact between commands anyway).
-    mm, deg = originals.closure(*run.once(motion_run, 'events', 'circle', 0, 10.0,
-                                          cycles=cycles, half_period=half)[:2])
-    ref_mm, ref_deg = originals.closure(*play_original(
-        lambda node: originals.move_rob(node, cycles, half_period=half), 10.0)[:2])
+    mm, deg = originals.closure(*run.once(motion, 'events', 'circle', 0, 10.0, cycles=cycles,
+                                          half_period=half)[:2])
+    ref_mm, ref_deg = originals.closure(*original(
+        run, lambda robot: originals.move_rob(robot, cycles, half_period=half), 10.0)[:2])
     return Row(
         f'circle back-and-forth, closure after {cycles} cycles ({half:g} s half period)',
         core.fmt_closure(mm, deg), f'move_rob.py model: {core.fmt_closure(ref_mm, ref_deg)}',
-        'move_rob.py at 10 Hz on sim time: every tick publishes (0.5, 0.5), both signs flipped '
-        f'every {round(10 * half)} ticks and each flip published twice a tick apart, the first '
-        'Twist with only the angular part (a 0.1 s turn in place); stopped after the last '
-        'cycle (the original never stops). Project: circle_back_and_forth. In-process lockstep.',
+        'move_rob.py at 10 Hz: (0.5, 0.5), both signs flipped every half period, each flip '
+        'published twice a tick apart (the first Twist only angular: a 0.1 s turn in place), '
+        'stopped at the end. Project: circle_back_and_forth. In-process lockstep, 10 Hz steps.',
         f'<= {core.TARGET_CLOSURE_MM:g} mm', mm <= core.TARGET_CLOSURE_MM,
         {'project_mm': mm, 'project_deg': deg, 'move_rob_mm': ref_mm, 'move_rob_deg': ref_deg,
          'cycles': cycles, 'half_period': half})
@@ -254,9 +238,8 @@ def integration_error(run):
         f'{run.sizes.laps} laps of v=0.5 m/s, w=0.5 rad/s at 0.02 s steps, position error',
         f'exact arc: max {e["arc_max_m"]:.1e} m, end {e["arc_end_m"]:.1e} m',
         f'Euler: max {e["euler_max_m"]:.1e} m, end {e["euler_end_m"]:.1e} m; ratio {ratio:.1e}',
-        "Against the closed-form circle, pure maths. On a constant circle Euler's heading is "
-        'exact and its error a phase lag (at most v*dt), largest mid-lap and small at whole '
-        'laps; the exact arc stays at rounding level.', data={'ratio_max': ratio, **e})
+        "Against the closed-form circle. Euler's error is a phase lag (at most v*dt), largest "
+        'mid-lap; the exact arc stays at rounding level.', data={'ratio_max': ratio, **e})
 
 
 @row('rtf')
@@ -271,11 +254,10 @@ def rtf_in_process(run):
     return Row(
         'real-time factor in one process (sim s / wall s), lockstep',
         f'EventsExecutor: {text["events"]}', f'SingleThreadedExecutor: {text["single_threaded"]}',
-        'The three default motions (rotate 90 timed, circle 1 cycle, timed out-and-back), the '
-        '50 Hz simulator stepped in lockstep: exact. Identical: final poses of two runs equal '
-        'to the bit. The target is judged on EventsExecutor, which the executables use.',
-        f'>= {core.TARGET_RTF_IN_PROCESS:g}x',
+        'rotate 90 timed, circle 1 cycle, timed out-and-back, two runs each, the 50 Hz simulator '
+        'stepped in lockstep. Identical: the final poses equal to the bit. Target on '
+        'EventsExecutor (the executables use it).', f'>= {core.TARGET_RTF_IN_PROCESS:g}x',
         min(rtf['events'].values()) >= core.TARGET_RTF_IN_PROCESS,
         {'events_rtf': rtf['events'], 'single_threaded_rtf': rtf['single_threaded'],
-         'events_identical': same['events'], 'single_threaded_identical':
-         same['single_threaded']})
+         'events_identical': same['events'],
+         'single_threaded_identical': same['single_threaded']})

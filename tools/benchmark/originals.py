@@ -15,10 +15,9 @@
 """
 The original ROS 1 tutorial programs as pure scripts, and the pure maths of the rows (no ROS).
 
-A script publishes through ``robot.publish(linear, angular)``, reads ``robot.now_ns()``, and each
-``yield`` waits for the next tick of its rate, as rospy's ``rate.sleep()`` on a clock that keeps
-perfect time (sim time).  It runs on the exact kinematic model (``ModelRobot``), whose ticks a
-harness Probe then replays to the simulator node (benchmark.one_process).
+A script publishes with ``robot.publish(linear, angular)``, reads ``robot.now_ns()``, and each
+``yield`` waits for its next tick, as rospy's ``rate.sleep()`` on sim time.  It runs on the
+kinematic model (``ModelRobot``), whose ticks a Probe replays to the simulator node.
 """
 
 import math
@@ -35,9 +34,8 @@ def original_rotate(robot, speed_deg, angle_deg, clockwise):
     """
     Rotate as The Construct's ``rotate_robot.py`` did, at 10 Hz, topic and final stop fixed.
 
-    Degrees to radians with 3.14/180; t0 = the whole seconds of now (``rospy.Time.now().secs``);
-    every tick publishes the turn, estimates the angle turned as speed x (whole seconds of now -
-    t0) and stops once that estimate reaches the goal.
+    Degrees to radians with 3.14/180; t0 = ``rospy.Time.now().secs``; every tick publishes the
+    turn and stops once speed x (whole seconds of now - t0) reaches the goal.
     """
     angular_speed = speed_deg * ORIGINAL_PI / 180.0
     t0 = robot.now_ns() // NS
@@ -104,9 +102,8 @@ class ModelRobot:
         """
         Run script to its end; return the final (x, y, yaw) and the seconds it took.
 
-        ``ticks`` then holds the (linear, angular) in force at each tick, which a node that
-        publishes one Twist a tick replays (harness.Probe.play): the script's final stop, at
-        the tick after, is the zero Twist the Probe ends with.
+        ``ticks`` then holds the command in force at each tick; a script's final stop, the
+        tick after, is the zero Twist harness.Probe.play ends with.
         """
         for _ in script:
             self.ticks.append(self.command)
@@ -137,8 +134,8 @@ def integration_errors(laps=100, linear=0.5, angular=0.5, dt=0.02):
     """
     Drive laps of a circle with the exact arc and with forward Euler at step dt.
 
-    Returns the position errors [m] against the closed form at the end (after exactly `laps`
-    laps, a last shorter step included) and the largest along the way, for both integrators.
+    Returns both integrators' position errors [m] from the closed form, the largest and at the
+    end (exactly `laps` laps: a last shorter step).
     """
     end_t = laps * 2.0 * math.pi / angular
     steps = int(end_t / dt)

@@ -15,10 +15,7 @@
 """
 Rows 7-12: the executables as a user starts them, over DDS, watched from this process.
 
-Row 7 runs each motion against a fresh ``unicycle_sim`` owning the clock (watch_motion, which
-``make demo`` shares); rows 8-10 time cmd_vel -> odom and read the simulator's CPU on wall
-time; rows 11-12 drive N robots in one process and as 2N processes (motions_run, which row 17
-shares).
+``watch_motion`` (row 7) is also ``make demo``'s run; ``motions_run`` (row 12) also row 17's.
 """
 
 import itertools
@@ -36,11 +33,7 @@ import numpy as np
 from rclpy.clock import Clock
 from rclpy.clock import ClockType
 from rclpy.experimental import EventsExecutor
-from sim_diffdrive.harness import is_moving
-from sim_diffdrive.harness import pose_of
-from sim_diffdrive.harness import SimGraph
-from sim_diffdrive.harness import stamp_s
-from sim_diffdrive.harness import twist_of
+from sim_diffdrive import harness
 
 ROTATE = {'angular_speed_deg': 60.0, 'angle_deg': 90.0, 'clockwise': True}
 # name: label, executable, parameters, simulated seconds (about), turn from the start [deg].
@@ -58,8 +51,8 @@ DONE = re.compile(r'Done in ([0-9.]+) s \(([0-9.]+) s wall\).* error ([0-9.]+) m
 
 
 def session():
-    """Return a SimGraph on the run's domain, for talking to processes."""
-    return SimGraph(executor_class=EventsExecutor)
+    """Return a harness.SimGraph on the run's domain, for talking to processes."""
+    return harness.SimGraph(executor_class=EventsExecutor)
 
 
 def watch_motion(graph, start, stop, motion, rtf, **sim_params):
@@ -67,9 +60,8 @@ def watch_motion(graph, start, stop, motion, rtf, **sim_params):
     Run a motion (of MOTIONS) against a fresh unicycle_sim owning the clock at rtf; watch it.
 
     start(executable, **params) starts a process, stop(process) stops it, returns its output.
-    Returns the exit code ('timeout', 'no odometry'), the motion's log, the odometry heard and
-    when; with odometry, the goal, the resting pose and its error, and the sim and wall s from
-    the last odometry at rest before the movement to the first after it.
+    Returns the exit code, the motion's log and the odometry heard (and when); then the goal,
+    the resting pose, its error, and the sim and wall s of the movement, from rest to rest.
     """
     _, executable, params, sim_seconds, turn_deg = MOTIONS[motion]
     probe, processes, code = graph.probe('motion_observer', listen_only=True), [], 'no odometry'
@@ -82,21 +74,22 @@ def watch_motion(graph, start, stop, motion, rtf, **sim_params):
             exited = graph.spin_until(lambda: processes[0].poll() is not None,
                                       15.0 + sim_seconds / min(rtf, 1.0))
             code, seen = processes[0].returncode if exited else 'timeout', len(probe.odoms)
-            graph.spin_until(lambda: len(probe.odoms) > seen + 2 and not is_moving(probe.odom),
-                             2.0)  # the resting pose: once the motion has gone
+            graph.spin_until(lambda: len(probe.odoms) > seen + 2  # at rest, the motion gone
+                             and not harness.is_moving(probe.odom), 2.0)
     finally:
         log = ([stop(process) for process in processes] or [''])[0]
         graph.remove(probe)
     result = {'exit': code, 'log': log, 'odoms': probe.odoms, 'walls': probe.odom_walls}
     if probe.odoms:
-        x, y, yaw = pose_of(probe.odoms[0])
+        x, y, yaw = harness.pose_of(probe.odoms[0])
         goal = x, y, math.remainder(yaw + math.radians(turn_deg), 2.0 * math.pi)
-        result.update(goal=goal, end=pose_of(probe.odom))
+        result.update(goal=goal, end=harness.pose_of(probe.odom))
         result['error_mm'], result['error_deg'] = closure(goal, result['end'])
-        moving = [i for i, odom in enumerate(probe.odoms) if is_moving(odom)]
+        moving = [i for i, odom in enumerate(probe.odoms) if harness.is_moving(odom)]
         if moving and moving[-1] + 1 < len(probe.odoms):
             before, after = max(moving[0] - 1, 0), moving[-1] + 1
-            result['sim_s'] = stamp_s(probe.odoms[after]) - stamp_s(probe.odoms[before])
+            result['sim_s'] = (harness.stamp_s(probe.odoms[after])
+                               - harness.stamp_s(probe.odoms[before]))
             result['wall_s'] = probe.odom_walls[after] - probe.odom_walls[before]
     return result
 
@@ -127,11 +120,10 @@ def rtf_processes(run):
         + {True: 'yes', False: 'no', None: '- (one run)'}[identical]
         + (f'; {len(failed)} runs failed' if failed else ''), f'clock set to {run.rtf:g}x',
         f'unicycle_sim (publish_clock, real_time_factor {run.rtf:g}, 50 Hz) and the motion '
-        'executables over DDS, a fresh simulator each run; sim and wall s from the first to '
-        "the last movement on odometry. The simulator waits for the motion's answer to each "
-        'step, so the factor is one round trip between two Python executors per 20 ms step. '
-        f'Worst error {worst_mm:.3g} mm, {worst_deg:.3g} deg.'
-        + ''.join(f' Failed: {f}.' for f in failed), f'>= {core.TARGET_RTF_PROCESSES:g}x',
+        'executables, a fresh simulator each run; sim and wall s of the movement on odometry. '
+        f'In lockstep: one round trip per 20 ms step. Worst error {worst_mm:.3g} mm, '
+        f'{worst_deg:.3g} deg.' + ''.join(f' Failed: {f}.' for f in failed),
+        f'>= {core.TARGET_RTF_PROCESSES:g}x',
         not failed and min(rtf.values()) >= core.TARGET_RTF_PROCESSES,
         {'rtf': rtf, 'identical': identical, 'errors_mm_deg': errors, 'failures': failed,
          'failure_logs': [core.tail(r['log']) for rs in results.values() for r in rs
@@ -162,7 +154,7 @@ def sim_process(run):
             for k in range(run.sizes.latency_samples):
                 angular, sent_at = 0.1 + 0.001 * k, time.monotonic()
                 probe.send(0.0, angular)
-                if graph.spin_until(lambda: twist_of(probe.odom) == (0.0, angular)
+                if graph.spin_until(lambda: harness.twist_of(probe.odom) == (0.0, angular)
                                     and probe.odom_walls[-1] >= sent_at, 1.0, poll=0.0005):
                     latencies.append(1000.0 * (probe.odom_walls[-1] - sent_at))
                 else:
