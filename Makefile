@@ -20,8 +20,10 @@ ROS_WHEELS := ros-rclpy==7.1.6 ros-geometry-msgs==5.3.6 ros-nav-msgs==5.3.6 \
 ROS_TEST_WHEELS := ros-ament-flake8==0.17.3 ros-ament-pep257==0.17.3 \
 	flake8==7.0.0 flake8-builtins==2.1.0 flake8-comprehensions==3.14.0 \
 	flake8-docstrings==1.7.0 flake8-import-order==0.19.2 flake8-quotes==3.3.2 pydocstyle==6.3.0
+# rerun-sdk: view_port's browser view (its wheel carries the rerun program and the web viewer);
+# playwright drives the system's Chromium in test_view.py (no browser download).
 PY_DEPS := numpy pytest pytest-xdist hypothesis colcon-common-extensions matplotlib import-linter \
-	mcap mcap-ros2-support foxglove-sdk websockets
+	mcap mcap-ros2-support foxglove-sdk websockets rerun-sdk==0.41.0 playwright==1.65.2
 
 .PHONY: venv test demo bench stress lint clean
 

@@ -18,12 +18,24 @@ Start unicycle_sim owning the clock, and optionally a motion on its time and RVi
     ros2 launch motion_challenges unicycle.launch.py
     ros2 launch motion_challenges unicycle.launch.py motion:=odom_out_and_back rviz:=true
     ros2 launch motion_challenges unicycle.launch.py motion:=rotate_robot real_time_factor:=5.0
+    ros2 launch motion_challenges unicycle.launch.py namespace:=robot1 rviz:=true
+    ros2 launch motion_challenges unicycle.launch.py robots:=[robot1,robot2] \
+        motion:=odom_out_and_back rviz:=true
 
-The motion runs with use_sim_time and its params file from share/motion_challenges/config
-(rotate_robot's answers are in it, so nothing prompts); the launch shuts down when it ends.
+The motion runs with use_sim_time and the parameters of its file in share/motion_challenges/
+config (rotate_robot's answers are in it, so nothing prompts); the launch shuts down when it
+ends.  ``namespace`` puts every node in it (topics /robot1/odom, frames robot1/odom ->
+robot1/base_footprint, as the simulator names them).  ``robots`` simulates a fleet (each
+robot's topics and frames under its name) and runs the motion on every robot with
+motion_fleet.  ``params_file`` is given to every node after the launch's own values, so its
+sections (``unicycle_sim:``, ``/**/odom_out_and_back:``) win.  RViz shows the robot from its
+odometry frame; for a namespace or a fleet the launch writes a copy of rviz/unicycle.rviz
+with the robots' frames and topics (sim_diffdrive/taps/rviz_config.py), and for a fleet ties
+every robot's odometry frame to ``world`` with a static transform, so one view shows them all.
 """
 
 import os
+import tempfile
 
 from ament_index_python.packages import get_package_share_directory
 from launch import LaunchDescription
@@ -31,48 +43,107 @@ from launch.actions import DeclareLaunchArgument
 from launch.actions import EmitEvent
 from launch.actions import OpaqueFunction
 from launch.actions import RegisterEventHandler
-from launch.conditions import IfCondition
 from launch.event_handlers import OnProcessExit
 from launch.events import Shutdown
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
+from sim_diffdrive.taps.rviz_config import FLEET_FRAME
+from sim_diffdrive.taps.rviz_config import robot_views
+from sim_diffdrive.taps.rviz_config import rviz_config
+import yaml
 
 PACKAGE = 'motion_challenges'
 MOTIONS = ('rotate_robot', 'circle_back_and_forth', 'timed_out_and_back', 'odom_out_and_back')
 
 
-def motion_actions(context):
-    """Return the motion's node and the handler that ends the launch with it (or nothing)."""
-    motion = LaunchConfiguration('motion').perform(context)
-    if not motion:
-        return []
-    if motion not in MOTIONS:
+def robot_names(text):
+    """Return the robots of ``robots:=[robot1,robot2]`` (also ``robot1,robot2``), or []."""
+    return [name.strip().strip('\'"') for name in text.strip().strip('[]').split(',')
+            if name.strip().strip('\'"')]
+
+
+def motion_parameters(motion):
+    """Return the parameters of config/<motion>.yaml, for the motion's node wherever it runs."""
+    path = os.path.join(get_package_share_directory(PACKAGE), 'config', motion + '.yaml')
+    with open(path) as config:
+        return yaml.safe_load(config)[motion]['ros__parameters']
+
+
+def launch_actions(context):
+    """Return the simulator, the motion (one per robot for a fleet) and RViz, as asked."""
+    value = {name: LaunchConfiguration(name).perform(context) for name in (
+        'namespace', 'params_file', 'robots', 'motion', 'real_time_factor', 'rviz')}
+    namespace, motion = value['namespace'].strip('/'), value['motion']
+    node_namespace = namespace or None  # (no namespace rather than an empty one)
+    robots = robot_names(value['robots'])
+    if motion and motion not in MOTIONS:
         raise RuntimeError(f"motion:='{motion}' is not one of {', '.join(MOTIONS)}")
-    params_file = os.path.join(get_package_share_directory(PACKAGE), 'config', motion + '.yaml')
-    node = Node(package=PACKAGE, executable=motion, output='screen',
-                parameters=[params_file, {'use_sim_time': True}])
-    ended = RegisterEventHandler(OnProcessExit(
-        target_action=node,
-        on_exit=[EmitEvent(event=Shutdown(reason=f'{motion} finished'))]))
-    return [node, ended]
+    user_file = [value['params_file']] if value['params_file'] else []
+    sim = {'publish_clock': True, 'real_time_factor': float(value['real_time_factor'])}
+    if robots:
+        sim['robots'] = robots
+    actions = [Node(package=PACKAGE, executable='unicycle_sim', namespace=node_namespace,
+                    output='screen', parameters=[sim, *user_file])]
+    if motion:
+        on_sim_time = {**motion_parameters(motion), 'use_sim_time': True}
+        if robots:  # the fleet's parameters reach each of its motion nodes
+            node = Node(package=PACKAGE, executable='motion_fleet', namespace=node_namespace,
+                        output='screen', parameters=[
+                            on_sim_time, {'robots': robots, 'motions': [motion]}, *user_file])
+        else:
+            node = Node(package=PACKAGE, executable=motion, namespace=node_namespace,
+                        output='screen', parameters=[on_sim_time, *user_file])
+        actions += [node, RegisterEventHandler(OnProcessExit(
+            target_action=node,
+            on_exit=[EmitEvent(event=Shutdown(reason=f'{motion} finished'))]))]
+    if value['rviz'].lower() in ('true', '1', 'yes'):
+        actions += rviz_actions(namespace, robots)
+    return actions
+
+
+def rviz_actions(namespace, robots):
+    """Return RViz with the configuration for namespace and robots (and the fleet's frames)."""
+    config = os.path.join(get_package_share_directory(PACKAGE), 'rviz', 'unicycle.rviz')
+    actions = []
+    if namespace or robots:
+        with open(config) as template:
+            text = rviz_config(template.read(), namespace, robots)
+        handle, config = tempfile.mkstemp(prefix='unicycle_', suffix='.rviz')
+        with os.fdopen(handle, 'w') as generated:
+            generated.write(text)
+    if robots:
+        for view in robot_views(namespace, robots):
+            actions.append(Node(
+                package='tf2_ros', executable='static_transform_publisher',
+                name=f"world_to_{view.odom_frame.replace('/', '_')}", output='log',
+                arguments=['--frame-id', FLEET_FRAME, '--child-frame-id', view.odom_frame]))
+    actions.append(Node(package='rviz2', executable='rviz2', arguments=['-d', config],
+                        parameters=[{'use_sim_time': True}]))
+    return actions
 
 
 def generate_launch_description():
-    rviz_config = os.path.join(get_package_share_directory(PACKAGE), 'rviz', 'unicycle.rviz')
     return LaunchDescription([
         DeclareLaunchArgument('real_time_factor', default_value='1.0',
                               description='Simulated seconds per wall second (an upper bound '
                                           'in lockstep).'),
         DeclareLaunchArgument('motion', default_value='',
-                              description='Also run this motion on simulated time, and shut '
-                                          'down when it ends: ' + ', '.join(MOTIONS)),
+                              description='Also run this motion on simulated time (on every '
+                                          'robot of robots), and shut down when it ends: '
+                                          + ', '.join(MOTIONS)),
         DeclareLaunchArgument('rviz', default_value='false',
-                              description='Also start RViz with rviz/unicycle.rviz.'),
-        Node(package=PACKAGE, executable='unicycle_sim', output='screen',
-             parameters=[{'publish_clock': True,
-                          'real_time_factor': LaunchConfiguration('real_time_factor')}]),
-        OpaqueFunction(function=motion_actions),
-        Node(package='rviz2', executable='rviz2', arguments=['-d', rviz_config],
-             parameters=[{'use_sim_time': True}],
-             condition=IfCondition(LaunchConfiguration('rviz'))),
+                              description='Also start RViz with rviz/unicycle.rviz (rewritten '
+                                          'for namespace and robots).'),
+        DeclareLaunchArgument('namespace', default_value='',
+                              description='Namespace of every node: topics /<namespace>/odom, '
+                                          'frames <namespace>/odom -> '
+                                          '<namespace>/base_footprint.'),
+        DeclareLaunchArgument('params_file', default_value='',
+                              description='ROS 2 parameters file for every node, applied after '
+                                          "the launch's own values (e.g. "
+                                          'config/unicycle_sim.yaml).'),
+        DeclareLaunchArgument('robots', default_value='',
+                              description='A fleet, e.g. [robot1,robot2]: one simulator for '
+                                          'all, and motion on each with motion_fleet.'),
+        OpaqueFunction(function=launch_actions),
     ])

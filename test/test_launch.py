@@ -17,8 +17,10 @@ launch/unicycle.launch.py and rviz/unicycle.rviz, checked where they can be.
 
 `launch` and RViz are not on PyPI, so the wheel environment checks the files themselves: the
 launch file parses, declares its arguments, starts executables this package installs with the
-params files it has; the RViz configuration is YAML with the displays the README promises.
-Where `launch` is importable (a machine with ROS 2 Jazzy), the launch description is built too.
+params files it has; the RViz configuration is YAML with the displays the README promises, on
+relative topics, and its copies for a namespace or a fleet name the frames and topics that a
+real simulator there uses.  Where `launch` is importable (a machine with ROS 2 Jazzy), the
+launch description is built too.
 """
 
 import ast
@@ -26,12 +28,15 @@ import importlib.util
 from pathlib import Path
 
 import pytest
+from sim_diffdrive.taps.rviz_config import FLEET_FRAME
+from sim_diffdrive.taps.rviz_config import robot_views
+from sim_diffdrive.taps.rviz_config import rviz_config
 import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
 LAUNCH_FILE = ROOT / 'launch' / 'unicycle.launch.py'
 RVIZ_FILE = ROOT / 'rviz' / 'unicycle.rviz'
-ARGUMENTS = {'real_time_factor', 'motion', 'rviz'}
+ARGUMENTS = {'real_time_factor', 'motion', 'rviz', 'namespace', 'params_file', 'robots'}
 
 
 def launch_tree():
@@ -73,18 +78,71 @@ def test_the_launch_file_starts_what_this_package_installs():
         assert (ROOT / 'config' / f'{motion}.yaml').is_file(), motion
     started = {keyword(call, 'executable').value for call in calls(tree, 'Node')
                if isinstance(keyword(call, 'executable'), ast.Constant)}
-    assert started == {'unicycle_sim', 'rviz2'}
+    assert started == {'unicycle_sim', 'motion_fleet', 'rviz2', 'static_transform_publisher'}
+    assert 'motion_fleet' in installed
 
 
-def test_the_rviz_configuration_shows_the_robot_from_odom():
+def displays_of(config):
+    return {d['Name']: d for d in config['Visualization Manager']['Displays']}
+
+
+def test_the_rviz_configuration_shows_the_robot_from_odom_on_relative_topics():
     config = yaml.safe_load(RVIZ_FILE.read_text())
     manager = config['Visualization Manager']
     assert manager['Global Options']['Fixed Frame'] == 'odom'
     displays = {d['Class']: d for d in manager['Displays']}
-    assert displays['rviz_default_plugins/Odometry']['Topic']['Value'] == '/odom'
-    assert displays['rviz_default_plugins/Path']['Topic']['Value'] == '/path'
+    # Relative, so RViz started in a namespace (/robot1) reads that robot's topics.
+    assert displays['rviz_default_plugins/Odometry']['Topic']['Value'] == 'odom'
+    assert displays['rviz_default_plugins/Path']['Topic']['Value'] == 'path'
     assert 'rviz_default_plugins/TF' in displays
     assert displays['rviz_default_plugins/Axes']['Reference Frame'] == 'base_footprint'
+    tools = {tool['Class']: tool for tool in manager['Tools']}
+    assert tools['rviz_default_plugins/SetInitialPose']['Topic']['Value'] == 'initialpose'
+
+
+def test_the_rviz_configuration_for_a_namespace_uses_its_frames_and_topics():
+    config = yaml.safe_load(rviz_config(RVIZ_FILE.read_text(), '/robot1'))
+    manager = config['Visualization Manager']
+    assert manager['Global Options']['Fixed Frame'] == 'robot1/odom'
+    displays = displays_of(config)
+    assert displays['Odometry']['Topic']['Value'] == '/robot1/odom'
+    assert displays['Driven path']['Topic']['Value'] == '/robot1/path'
+    assert displays['Robot']['Reference Frame'] == 'robot1/base_footprint'
+    assert displays['Grid']['Reference Frame'] == '<Fixed Frame>'
+    tools = {tool['Class']: tool for tool in manager['Tools']}
+    assert tools['rviz_default_plugins/SetInitialPose']['Topic']['Value'] == '/robot1/initialpose'
+    assert rviz_config(RVIZ_FILE.read_text(), 'robot1') == rviz_config(
+        RVIZ_FILE.read_text(), '/robot1/')
+
+
+def test_the_rviz_configuration_for_a_fleet_shows_every_robot_from_world():
+    config = yaml.safe_load(rviz_config(RVIZ_FILE.read_text(), '', ['robot1', 'robot2']))
+    manager = config['Visualization Manager']
+    assert manager['Global Options']['Fixed Frame'] == FLEET_FRAME == 'world'
+    displays = displays_of(config)
+    for robot in ('robot1', 'robot2'):
+        assert displays[f'Odometry {robot}']['Topic']['Value'] == f'/{robot}/odom'
+        assert displays[f'Driven path {robot}']['Topic']['Value'] == f'/{robot}/path'
+        assert displays[f'Robot {robot}']['Reference Frame'] == f'{robot}/base_footprint'
+    assert len(displays) == 2 + 3 * 2  # grid and TF once, three displays per robot
+    # A pose set in RViz is in its fixed frame, world, which no robot takes: no pose tool.
+    assert [tool['Class'] for tool in manager['Tools']] == ['rviz_default_plugins/MoveCamera']
+
+
+@pytest.mark.parametrize('namespace, robots', [
+    ('', []), ('/robot1', []), ('', ['robot1', 'robot2']), ('/site', ['a', 'team/b'])])
+def test_the_rviz_frames_and_topics_are_the_simulators(ros_context, namespace, robots):
+    from rclpy.parameter import Parameter
+    from sim_diffdrive.sim.node import UnicycleSim
+    sim = UnicycleSim(context=ros_context, namespace=namespace or None,
+                      parameter_overrides=[Parameter('robots', value=robots)])
+    try:
+        for robot, view in zip(sim.robots, robot_views(namespace, robots), strict=True):
+            assert (view.odom_frame, view.base_frame) == robot.frames
+            assert f'{view.topics}/odom' == robot.odom_pub.topic_name
+            assert f'{view.topics}/path' == robot.path_pub.topic_name
+    finally:
+        sim.destroy_node()
 
 
 @pytest.mark.skipif(importlib.util.find_spec('launch') is None
@@ -99,3 +157,7 @@ def test_the_launch_description_builds_where_launch_exists():
     declared = {entity.name for entity in description.entities
                 if isinstance(entity, DeclareLaunchArgument)}
     assert declared == ARGUMENTS
+    assert module.robot_names('[robot1, robot2]') == ['robot1', 'robot2']
+    assert module.robot_names("['robot1','robot2']") == ['robot1', 'robot2']
+    assert module.robot_names('robot1,robot2') == ['robot1', 'robot2']
+    assert module.robot_names('') == module.robot_names('[]') == []

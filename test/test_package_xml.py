@@ -13,16 +13,19 @@
 # limitations under the License.
 
 """
-package.xml declares what the installed code imports, and nothing else, as exec_depend.
+package.xml declares what the installed code imports and starts, and nothing else, as exec_depend.
 
 rosdep installs a package's exec_depends on a user's machine: a module imported but not
 declared breaks there (matplotlib for plot_file), one declared but not imported is installed
-for nothing.  The list is derived from the imports of the installed Python packages, read with
-ast, so a new import (numpy in the simulator, say) shows up here until it is declared.
+for nothing.  The list is derived from the imports of the installed Python packages and of the
+installed launch file, and from the packages whose nodes the launch file starts (RViz), read
+with ast, so a new import (numpy in the simulator, say) shows up here until it is declared.
+Optional packages (pip only) are named in package.xml with the line that installs them.
 """
 
 import ast
 from pathlib import Path
+import re
 import sys
 import xml.etree.ElementTree as ElementTree
 
@@ -41,13 +44,21 @@ ROSDEP_KEYS = {
 # ROS packages a Python module of the same name comes from.
 ROS_PACKAGES = {'ament_index_python', 'geometry_msgs', 'nav_msgs', 'rcl_interfaces', 'rclpy',
                 'rosgraph_msgs', 'std_msgs', 'std_srvs', 'tf2_msgs'}
+# ROS packages the launch file imports or starts nodes of.
+LAUNCH_PACKAGES = {'launch', 'launch_ros', 'rviz2', 'tf2_ros'}
 # Optional dependencies (pip packages without a rosdep key): each imported only by the module of
 # the feature that needs it, which the simulator imports only when that feature is asked for and
 # runs without when it is missing (sim_diffdrive/taps/__init__.py).  Not exec_depends.
 OPTIONAL = {
     'mcap': ['sim_diffdrive/taps/recorder.py'],  # record_file
     'foxglove': ['sim_diffdrive/taps/foxglove_live.py'],  # foxglove_port
+    'rerun': ['sim_diffdrive/taps/view.py'],  # view_port (the module of rerun-sdk)
+    'rerun_cli': ['sim_diffdrive/taps/view.py'],  # view_port (its rerun program)
 }
+# The pip package of each optional module, as package.xml names it.
+PIP_PACKAGES = {'mcap': 'mcap', 'foxglove': 'foxglove-sdk', 'rerun': 'rerun-sdk',
+                'rerun_cli': 'rerun-sdk'}
+LAUNCH_FILES = sorted((ROOT / 'launch').glob('*.launch.py'))
 
 
 def third_party_imports():
@@ -69,6 +80,34 @@ def third_party_imports():
     return {module: sorted(files) for module, files in found.items()}
 
 
+def launch_needs():
+    """Return {ROS package or module: [launch files]}: their imports and the nodes they run."""
+    found = {}
+    for path in LAUNCH_FILES:
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            if isinstance(node, ast.ImportFrom) and node.level == 0:
+                names = [node.module.partition('.')[0]]
+            elif isinstance(node, ast.Import):
+                names = [alias.name.partition('.')[0] for alias in node.names]
+            elif isinstance(node, ast.Call) and getattr(node.func, 'id', None) == 'Node':
+                package = next(k.value for k in node.keywords if k.arg == 'package')
+                names = [package.value] if isinstance(package, ast.Constant) else []
+            else:
+                continue
+            for name in names:
+                if name not in sys.stdlib_module_names and name not in INSTALLED:
+                    found.setdefault(name, set()).add(str(path.relative_to(ROOT)))
+    return {name: sorted(files) for name, files in found.items()}
+
+
+def needed():
+    """Return {module or ROS package: [files]}: the installed code's imports and the launch's."""
+    found = third_party_imports()
+    for name, files in launch_needs().items():
+        found[name] = sorted(set(found.get(name, [])) | set(files))
+    return found
+
+
 def declared(tag):
     root = ElementTree.parse(ROOT / 'package.xml').getroot()
     return {element.text.strip() for element in root.iter(tag)}
@@ -81,14 +120,20 @@ def test_the_scan_sees_the_imports_it_is_meant_to():
     assert imports['matplotlib'] == ['motion_challenges/plotting.py']
 
 
+def test_the_launch_scan_sees_what_the_launch_file_runs():
+    needs = launch_needs()
+    assert {'launch', 'launch_ros', 'rviz2', 'tf2_ros', 'yaml'} <= set(needs)
+    assert 'motion_challenges' not in needs  # its own nodes are this package
+
+
 def test_every_imported_module_is_an_exec_depend():
     exec_depends = declared('exec_depend')
     missing = {}
-    for module, files in sorted(third_party_imports().items()):
+    for module, files in sorted(needed().items()):
         if module in OPTIONAL:
             continue
-        assert module in ROSDEP_KEYS or module in ROS_PACKAGES, (
-            f'{module} (imported by {files}): add its rosdep key to ROSDEP_KEYS')
+        assert module in ROSDEP_KEYS or module in ROS_PACKAGES | LAUNCH_PACKAGES, (
+            f'{module} (needed by {files}): add its rosdep key to ROSDEP_KEYS')
         key = ROSDEP_KEYS.get(module, module)
         if key not in exec_depends:
             missing[key] = files
@@ -102,8 +147,14 @@ def test_optional_dependencies_stay_in_their_modules():
         assert module not in declared('exec_depend')
 
 
+def test_package_xml_says_how_to_install_each_optional_package():
+    text = (ROOT / 'package.xml').read_text()
+    for module, pip_package in PIP_PACKAGES.items():
+        assert re.search(rf'pip install [^\n]*\b{re.escape(pip_package)}\b', text), module
+
+
 def test_no_exec_depend_goes_unused():
-    keys = {ROSDEP_KEYS.get(module, module) for module in third_party_imports()}
+    keys = {ROSDEP_KEYS.get(module, module) for module in needed()}
     unused = declared('exec_depend') - keys
     assert not unused, f'declared as <exec_depend> but imported by no installed module: {unused}'
 

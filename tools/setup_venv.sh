@@ -15,10 +15,14 @@ missing=()
 # them with iptables; it skips without them.
 command -v ip >/dev/null 2>&1 || missing+=(iproute2)
 command -v iptables >/dev/null 2>&1 || [ -x /usr/sbin/iptables ] || missing+=(iptables)
+# test_view.py opens the browser view in the system's Chromium (Debian's package), headless.
+command -v chromium >/dev/null 2>&1 || command -v chromium-browser >/dev/null 2>&1 \
+  || missing+=(chromium)
 if [ ${#missing[@]} -gt 0 ] && [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then
-  echo "Installing ${missing[*]} (for the two-hosts tests) ..."
-  { apt-get update -qq && apt-get install -y -qq "${missing[@]}" >/dev/null; } \
-    || echo "Could not install ${missing[*]}: the two-hosts tests will be skipped."
+  echo "Installing ${missing[*]} (for the two-hosts and browser tests) ..."
+  { apt-get update -qq && DEBIAN_FRONTEND=noninteractive \
+      apt-get install -y -qq "${missing[@]}" >/dev/null; } \
+    || echo "Could not install ${missing[*]}: the tests that need them will be skipped."
 fi
 
 if [ "${ROS_DISTRO:-}" = "jazzy" ]; then

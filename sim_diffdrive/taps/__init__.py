@@ -13,7 +13,7 @@
 # limitations under the License.
 
 """
-Where else the simulator's traffic goes: an MCAP file (record_file), Foxglove (foxglove_port).
+Where else the simulator's traffic goes: an MCAP file, Foxglove, a browser (view_port).
 
 A tap has a ``name``, ``wants_path`` (whether the simulator should build the path message for
 it even when nobody subscribes on DDS), ``write(topic, msg, stamp_ns)`` — called with every
@@ -21,8 +21,9 @@ command the simulator hears and every odometry, /tf, /clock and path message it 
 before the message is reused — ``close()``, and optionally ``step(stamp_ns, fleet)``, called
 once per odometry publish with the whole fleet (sim/fleet.py: numpy arrays ``x``, ``y``,
 ``yaw``, ``linear``, ``angular``, ``target_linear``, ``target_angular`` and the list
-``names``), for a tap that draws every robot at once.  Both kinds are optional dependencies: when
-one is missing, or a file cannot be opened, the simulator says so once and runs without it.
+``names``), for a tap that draws every robot at once.  Each needs an optional package (mcap,
+foxglove-sdk, rerun-sdk): when it is missing, or a file or port cannot be had, the simulator
+says so once and runs without it.
 A tap that fails while writing (a full disk) is reported once and dropped; the simulation
 goes on.
 """
@@ -38,6 +39,11 @@ TAP_PARAMETERS = (
          'Serve the run live to Foxglove (its WebSocket protocol) on this port, e.g. '
          "8765, Foxglove's usual one; 0 = off. Needs foxglove-sdk.",
          low=0, high=65535),
+    Spec('view_port', 0,
+         'Serve a live view of every robot (pose, path, commanded and achieved speeds) to a '
+         'web browser on this port of 127.0.0.1 (the simulator logs the address to open), '
+         'e.g. 9090; 0 = off. Needs rerun-sdk.',
+         low=0, high=65535),
 )
 
 
@@ -50,6 +56,10 @@ class Taps:
 
     def __bool__(self):
         return bool(self._taps)
+
+    def named(self, name):
+        """Return the tap called name (its parameter, e.g. 'view_port'), or None."""
+        return next((tap for tap in self._taps if tap.name == name), None)
 
     @property
     def wants_path(self):
@@ -89,7 +99,7 @@ class Taps:
 
 
 def open_taps(node):
-    """Return the Taps node.params ask for (record_file, foxglove_port)."""
+    """Return the Taps node.params ask for (record_file, foxglove_port, view_port)."""
     p = node.params
     taps = []
     if p.record_file:
@@ -97,6 +107,9 @@ def open_taps(node):
     if p.foxglove_port:
         taps.append(_open(node, 'foxglove_port', 'foxglove-sdk',
                           lambda: _foxglove()(p.foxglove_port, node)))
+    if p.view_port:
+        taps.append(_open(node, 'view_port', 'rerun-sdk',
+                          lambda: _browser_view()(p.view_port, node)))
     return Taps(node, [tap for tap in taps if tap is not None])
 
 
@@ -120,3 +133,8 @@ def _recorder():
 def _foxglove():
     from sim_diffdrive.taps.foxglove_live import FoxgloveLive
     return FoxgloveLive
+
+
+def _browser_view():
+    from sim_diffdrive.taps.view import BrowserView
+    return BrowserView

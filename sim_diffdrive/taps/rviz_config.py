@@ -1,0 +1,103 @@
+# Copyright 2026 motion_challenges contributors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+RViz for a namespaced robot or a fleet: rviz/unicycle.rviz, rewritten for its frames and topics.
+
+The installed configuration shows one robot in the root namespace (relative topics ``odom``,
+``path``; fixed frame ``odom``).  The simulator prefixes its default frames with its namespace
+and, for each robot of ``robots``, with the robot's name (sim/odom_tf.py, sim/robot.py):
+``robot1/odom`` -> ``robot1/base_footprint``.  ``rviz_config`` writes a copy for a namespace
+(fixed frame and the robot's frame from the namespace, topics absolute) or for a fleet: the
+odometry, path and base-frame displays once per robot, on a fixed frame ``world`` that the
+launch file ties to every robot's odometry frame (identity transforms), so one view shows
+every robot through TF.  No ROS imports: launch/unicycle.launch.py and the tests use it.
+"""
+
+import collections
+import copy
+
+import yaml
+
+FLEET_FRAME = 'world'
+ODOM_FRAME = 'odom'
+BASE_FRAME = 'base_footprint'
+_PER_ROBOT = ('rviz_default_plugins/Odometry', 'rviz_default_plugins/Path',
+              'rviz_default_plugins/Axes')
+_POSE_TOOL = 'rviz_default_plugins/SetInitialPose'
+
+RobotView = collections.namedtuple('RobotView', 'name odom_frame base_frame topics')
+
+
+def robot_views(namespace='', robots=()):
+    """
+    Return a RobotView per robot (one unnamed for no robots): its frames and topic namespace.
+
+    Frames as unicycle_sim names its default ones in namespace (``/site`` -> ``site/odom``) and
+    for each robot (``robot1/site/odom``); topics the absolute namespace of the robot's
+    ``odom``, ``path`` and ``initialpose`` (``/site/robot1``, or ``''`` at the root).
+    """
+    prefix = namespace.strip('/')
+    views = []
+    for name in robots or ['']:
+        odom, base = (_prefixed(name, _prefixed(prefix, frame))
+                      for frame in (ODOM_FRAME, BASE_FRAME))
+        topics = ''.join(f'/{part}' for part in (prefix, name) if part)
+        views.append(RobotView(name, odom, base, topics))
+    return views
+
+
+def rviz_config(template, namespace='', robots=()):
+    """Return the RViz configuration template (YAML text) rewritten for namespace and robots."""
+    config = yaml.safe_load(template)
+    views = robot_views(namespace, robots)
+    manager = config['Visualization Manager']
+    manager['Global Options']['Fixed Frame'] = FLEET_FRAME if robots else views[0].odom_frame
+    displays = []
+    for display in manager['Displays']:
+        if display['Class'] not in _PER_ROBOT:
+            displays.append(display)
+            continue
+        for view in views:
+            displays.append(_for_robot(display, view, label=bool(robots)))
+    manager['Displays'] = displays
+    tools = []
+    for tool in manager.get('Tools', []):
+        if tool['Class'] != _POSE_TOOL:
+            tools.append(tool)
+        elif not robots:  # the pose is given in the fixed frame: the robot's own odom frame
+            tool = copy.deepcopy(tool)
+            tool['Topic']['Value'] = f'{views[0].topics}/initialpose'
+            tools.append(tool)
+    manager['Tools'] = tools
+    where = ', '.join(filter(None, (namespace and f"namespace /{namespace.strip('/')}",
+                                    robots and f"robots {', '.join(robots)}")))
+    return (f'# Written by launch/unicycle.launch.py from rviz/unicycle.rviz for {where}.\n'
+            + yaml.safe_dump(config, sort_keys=False))
+
+
+def _for_robot(display, view, label):
+    display = copy.deepcopy(display)
+    if label:
+        display['Name'] = f"{display['Name']} {view.name}"
+    if 'Topic' in display:
+        topic = display['Topic']['Value'].lstrip('/')
+        display['Topic']['Value'] = f'{view.topics}/{topic}'
+    if display['Class'] == 'rviz_default_plugins/Axes':
+        display['Reference Frame'] = view.base_frame
+    return display
+
+
+def _prefixed(prefix, frame):
+    return f'{prefix}/{frame}' if prefix else frame

@@ -1,0 +1,431 @@
+# Copyright 2026 motion_challenges contributors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The run, live in a browser (view_port): Rerun's web viewer, fed on simulated time.
+
+Nothing to install but the rerun-sdk wheel, which carries the ``rerun`` program and its web
+viewer.  ``BrowserView`` starts that program as a child process listening on 127.0.0.1 only
+(gRPC on view_port + 1 when free, so the address to open stays the same from run to run, and
+the viewer's files on a free port), serves the page on ``view_port`` (view_page.py: the same
+files, confined to this machine, following the next run on the port) and logs to the program
+with the SDK, one recording per run:
+
+- ``world/robots`` and ``world/heading``: each robot as a box turned to its yaw and an arrow
+  along its heading, in its odometry frame, seen from above with x to the right and y up
+  (REP 103, as RViz shows it; Rerun's 2D view would draw y down);
+- ``world/paths``: each robot's path since the last frame, shown with all the earlier pieces
+  (the view keeps that entity's whole history visible), so a frame sends the newest piece,
+  never the whole path; a jump (a reset) is not joined by a line;
+- ``speed/linear`` and ``speed/angular``: achieved and commanded speed of each robot.
+
+The simulator's thread only copies each step's arrays (a few microseconds); a thread sends
+frames at most 30 times a wall second, each with every step since the last one, so the plots
+and paths have every step while the cost does not grow with real_time_factor.  Every kind of
+shape goes out in one call for all robots (arrays): one entity per robot would cost
+0.5-1 ms per robot-step.
+
+The ``rerun`` program runs with a configuration directory of its own in which analytics are
+disabled (``rerun analytics disable``, Rerun's documented switch), so the user's Rerun
+configuration is neither read nor changed.  It is stopped with the simulator: by close()
+(Ctrl-C and SIGTERM come through it) and, on Linux, by the kernel should the simulator die
+without closing (``setpriv --pdeathsig``, util-linux).
+"""
+
+import atexit
+import collections
+import os
+import shutil
+import socket
+import subprocess
+import tempfile
+import threading
+import time
+import uuid
+
+import numpy as np
+from sim_diffdrive.taps.view_page import page_url
+from sim_diffdrive.taps.view_page import ViewerPage
+
+DEFAULT_HOST = '127.0.0.1'
+TIMELINE = 'sim_time'
+# At most this many frames per wall second go to the viewer (a screen shows no more); the
+# steps between two frames are kept and logged with the next one, so paths and speed plots
+# have every step and the cost per step stays a few microseconds.
+FRAME_PERIOD_S = 1.0 / 30.0
+# The steps one frame can hold: fewer with more robots, so memory stays a few MB.
+_MAX_VALUES_PER_FRAME = 1 << 18
+# How long the rerun program may take to listen [s], and to stop before it is killed.
+START_TIMEOUT_S = 15.0
+STOP_TIMEOUT_S = 3.0
+# The robot as drawn, in its base frame [m]: a box on the ground and an arrow along +x.
+BODY_HALF_SIZE = (0.15, 0.12, 0.05)
+ARROW_LENGTH = 0.35
+PATH_RADIUS = 0.01
+# A step longer than its robot can have driven is a jump (a reset): no path segment joins it.
+_JUMP_MARGIN_M = 1e-3
+# More robots than these: no name labels in the view, no legend in the plots (they pile up).
+_LABELLED_ROBOTS = 16
+_LEGEND_ROBOTS = 4
+_GOLDEN = 0.618033988749895
+
+
+class BrowserView:
+    """A tap (see taps/__init__.py) drawing every robot in Rerun's web viewer."""
+
+    name = 'view_port'
+    wants_path = False
+
+    def __init__(self, port, node, host=DEFAULT_HOST):
+        """
+        Serve the viewer on host:port and connect the SDK to a freshly started rerun program.
+
+        Raises ImportError without rerun-sdk and OSError when the port is taken or the rerun
+        program does not start.
+        """
+        import rerun as rr
+        program = rerun_program()
+        self._rr = rr
+        self._process = self._page = self._rec = self._thread = None
+        self._home = tempfile.mkdtemp(prefix='unicycle_sim_view_')
+        self._sim_clock = node.params.publish_clock or node.get_parameter('use_sim_time').value
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self._failure = None  # why the view stopped, for the simulator to report
+        try:
+            grpc_port, files_port = _grpc_port(host, port), _free_port(host)
+            run = uuid.uuid4()
+            self.grpc_url = f'rerun+http://{host}:{grpc_port}/proxy'
+            self._page = ViewerPage(host, port, files_port, [
+                f'http://{name}:{grpc_port}' for name in (host, 'localhost')],
+                (run.hex, self.grpc_url))
+            self._process = self._start_rerun(program, host, grpc_port, files_port)
+            self.url = page_url(self._page.port, self.grpc_url)
+            self._rec = rr.RecordingStream('unicycle_sim', recording_id=run)
+            self._rec.connect_grpc(self.grpc_url, default_blueprint=_blueprint(node.fleet))
+            self._log_static(node.fleet.names)
+        except BaseException:
+            self.close()
+            raise
+        self._frames = _Frames(len(node.fleet.names))
+        self._thread = threading.Thread(target=self._send_frames, name='browser_view',
+                                        daemon=True)
+        self._thread.start()
+        atexit.register(self.close)
+        node.get_logger().info(f'Browser view: open {self.url}')
+
+    # -- the rerun program ----------------------------------------------------------------
+
+    def _start_rerun(self, program, host, grpc_port, files_port):
+        env = dict(os.environ, XDG_CONFIG_HOME=os.path.join(self._home, 'config'),
+                   XDG_DATA_HOME=os.path.join(self._home, 'data'), TELEMETRY_ENABLED='false')
+        try:  # Rerun's documented opt-out, written to this run's own configuration directory
+            subprocess.run([program, 'analytics', 'disable'], env=env, timeout=30, check=True,
+                           stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                           stderr=subprocess.DEVNULL)
+        except subprocess.SubprocessError as error:
+            raise OSError(f'{program} analytics disable failed: {error}') from error
+        command = [program, '--serve-web', '--bind', host, '--port', str(grpc_port),
+                   '--web-viewer-port', str(files_port)]
+        setpriv = shutil.which('setpriv')
+        if setpriv is not None:  # util-linux: the kernel stops it should this process die
+            command = [setpriv, '--pdeathsig', 'TERM', '--'] + command
+        self._log_path = os.path.join(self._home, 'rerun.log')
+        with open(self._log_path, 'wb') as log:
+            # Its own session: a Ctrl-C in the terminal reaches the simulator, which stops it.
+            process = subprocess.Popen(command, env=env, stdin=subprocess.DEVNULL, stdout=log,
+                                       stderr=subprocess.STDOUT, start_new_session=True)
+        deadline = time.monotonic() + START_TIMEOUT_S
+        while not (_listening(host, grpc_port) and _listening(host, files_port)):
+            if process.poll() is not None or time.monotonic() > deadline:
+                _stop(process)
+                raise OSError(f'the rerun program did not start ({self._log_tail()})')
+            time.sleep(0.02)
+        return process
+
+    def _log_tail(self):
+        try:
+            with open(self._log_path, 'rb') as log:
+                lines = log.read().decode(errors='replace').strip().splitlines()
+        except OSError:
+            return 'no output'
+        return lines[-1] if lines else 'no output'
+
+    # -- the simulator's side: a few microseconds per step ---------------------------------
+
+    def write(self, topic, msg, stamp_ns):
+        """Messages one by one are not drawn: step() draws the whole fleet at once."""
+
+    def step(self, stamp_ns, fleet):
+        """Keep every robot's state at stamp_ns for the next frame."""
+        if self._failure is not None:
+            raise OSError(self._failure)
+        with self._lock:
+            frames = self._frames
+            if frames.full:  # the sending thread is starved: send from here
+                self._log(frames.take())
+            frames.add(stamp_ns, fleet)
+
+    # -- the sending thread: at most FRAME_PERIOD_S apart -----------------------------------
+
+    def _send_frames(self):
+        while not self._stop.wait(FRAME_PERIOD_S):
+            try:
+                if self._process.poll() is not None:
+                    raise OSError(f'the rerun program stopped ({self._log_tail()})')
+                with self._lock:
+                    frame = self._frames.take()
+                self._log(frame)
+            except Exception as error:  # reported by the next step(), which drops the view
+                self._failure = f'{type(error).__name__}: {error}'
+                return
+
+    def _log(self, frame):
+        """Log the poses of the frame's newest step, the path since the last frame, speeds."""
+        if frame is None:
+            return
+        rr, rec = self._rr, self._rec
+        stamps, x, y, yaw = frame.stamps, frame.x[-1], frame.y[-1], frame.yaw[-1]
+        if self._sim_clock:
+            rec.set_time(TIMELINE, duration=int(stamps[-1]) * 1e-9)
+            times = rr.TimeColumn(TIMELINE, duration=stamps * 1e-9)
+        else:
+            rec.set_time(TIMELINE, timestamp=np.datetime64(int(stamps[-1]), 'ns'))
+            times = rr.TimeColumn(TIMELINE, timestamp=stamps.astype('datetime64[ns]'))
+        count = len(x)
+        positions = np.zeros((count, 3))
+        positions[:, 0] = x
+        positions[:, 1] = y
+        quaternions = np.zeros((count, 4))
+        quaternions[:, 2] = np.sin(0.5 * yaw)
+        quaternions[:, 3] = np.cos(0.5 * yaw)
+        rec.log('world/robots', rr.Boxes3D.from_fields(
+            centers=positions, quaternions=quaternions))
+        heading = np.zeros((count, 3))
+        heading[:, 0] = ARROW_LENGTH * np.cos(yaw)
+        heading[:, 1] = ARROW_LENGTH * np.sin(yaw)
+        rec.log('world/heading', rr.Arrows3D.from_fields(origins=positions, vectors=heading))
+        if frame.strips is not None:
+            rec.log('world/paths', rr.LineStrips3D.from_fields(strips=frame.strips))
+        rows = [2 * count] * len(stamps)
+        for name, achieved, commanded in (('linear', frame.linear, frame.target_linear),
+                                          ('angular', frame.angular, frame.target_angular)):
+            values = np.concatenate([achieved, commanded], axis=1).ravel()
+            rec.send_columns(f'speed/{name}', indexes=[times],
+                             columns=rr.Scalars.columns(scalars=values).partition(rows))
+
+    def _log_static(self, names):
+        """Log what does not change during the run: axes, colours, names, line styles."""
+        rr, rec, count = self._rr, self._rec, len(names)
+        colors = robot_colors(count)
+        labels = [name or 'robot' for name in names]
+        rec.log('world', rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
+        rec.log('world/robots', rr.Boxes3D.from_fields(
+            half_sizes=[BODY_HALF_SIZE], colors=colors, labels=labels,
+            show_labels=any(names) and count <= _LABELLED_ROBOTS), static=True)
+        rec.log('world/heading', rr.Arrows3D.from_fields(colors=colors), static=True)
+        rec.log('world/paths', rr.LineStrips3D.from_fields(
+            colors=colors, radii=[PATH_RADIUS]), static=True)
+        dimmed = (colors * 0.5 + 127.5).astype(np.uint8)
+        for kind in ('linear', 'angular'):
+            rec.log(f'speed/{kind}', rr.SeriesLines(
+                names=[f'{name} achieved' for name in labels]
+                + [f'{name} commanded' for name in labels],
+                colors=np.concatenate([colors, dimmed]),
+                widths=[2.0] * count + [1.0] * count), static=True)
+
+    def close(self):
+        """Send the last frame, stop the rerun program and the page (idempotent)."""
+        self._stop.set()
+        thread, self._thread = self._thread, None
+        try:
+            if thread is not None:
+                thread.join()
+                if self._failure is None:
+                    with self._lock:
+                        self._log(self._frames.take())  # the steps since the last frame
+        finally:
+            rec, self._rec = self._rec, None
+            if rec is not None:
+                rec.flush(timeout_sec=1.0)
+                rec.disconnect()
+            page, self._page = self._page, None
+            if page is not None:
+                page.close()
+            process, self._process = self._process, None
+            if process is not None:
+                _stop(process)
+            home, self._home = self._home, None
+            if home is not None:
+                shutil.rmtree(home, ignore_errors=True)
+            atexit.unregister(self.close)
+
+
+def _blueprint(fleet):
+    """Return the layout: the robots from above (around where they start), beside their speeds."""
+    import rerun.blueprint as rrb
+    center = [float(np.mean(fleet.x)), float(np.mean(fleet.y)), 0.0]
+    span = float(max(np.ptp(fleet.x), np.ptp(fleet.y)))
+    whole_run = rrb.VisibleTimeRanges(rrb.VisibleTimeRange(
+        TIMELINE, start=rrb.TimeRangeBoundary.infinite(),
+        end=rrb.TimeRangeBoundary.cursor_relative()))
+    top_view = rrb.Spatial3DView(
+        origin='world', name='Robots from above (x right, y up)',
+        eye_controls=rrb.EyeControls3D(
+            position=[center[0], center[1], max(6.0, 1.5 * span + 4.0)], look_target=center,
+            eye_up=[0, 1, 0]),
+        overrides={'world/paths': whole_run})
+    legend = rrb.PlotLegend(visible=len(fleet.x) <= _LEGEND_ROBOTS)
+    speeds = rrb.Vertical(
+        rrb.TimeSeriesView(origin='speed/linear', name='linear.x [m/s]', plot_legend=legend),
+        rrb.TimeSeriesView(origin='speed/angular', name='angular.z [rad/s]', plot_legend=legend))
+    return rrb.Blueprint(
+        rrb.Horizontal(top_view, speeds, column_shares=[3, 2]),
+        rrb.BlueprintPanel(state='collapsed'), rrb.SelectionPanel(state='collapsed'),
+        rrb.TimePanel(state='collapsed'))
+
+
+Frame = collections.namedtuple(
+    'Frame', 'stamps x y yaw linear angular target_linear target_angular strips')
+
+
+class _Frames:
+    """Every robot's state at each step since the last frame, and where each path left off."""
+
+    FIELDS = ('x', 'y', 'yaw', 'linear', 'angular', 'target_linear', 'target_angular')
+
+    def __init__(self, count):
+        self.capacity = min(8192, max(64, _MAX_VALUES_PER_FRAME // count))
+        self.stamps = np.zeros(self.capacity, dtype=np.int64)
+        for name in self.FIELDS:
+            setattr(self, name, np.zeros((self.capacity, count)))
+        self.steps = 0
+        self._path_end = None  # (stamp_ns, x, y, linear) of the newest step already sent
+
+    @property
+    def full(self):
+        return self.steps == self.capacity
+
+    def add(self, stamp_ns, fleet):
+        i = self.steps
+        self.stamps[i] = stamp_ns
+        for name in self.FIELDS:
+            getattr(self, name)[i] = getattr(fleet, name)
+        self.steps = i + 1
+
+    def take(self):
+        """Return the steps since the last frame as a Frame (None if none) and forget them."""
+        steps = self.steps
+        if steps == 0:
+            return None
+        stamps, xs, ys, linear = (
+            self.stamps[:steps], self.x[:steps].T, self.y[:steps].T, self.linear[:steps].T)
+        if self._path_end is not None:  # the paths go on from where they left off
+            stamps, xs, ys, linear = (np.concatenate([np.asarray(start)[..., None], now], axis=-1)
+                                      for start, now in zip(self._path_end, (
+                                          stamps, xs, ys, linear)))
+        frame = Frame(self.stamps[:steps].copy(), *(
+            getattr(self, name)[:steps].copy() for name in self.FIELDS),
+            _strips(stamps, xs, ys, linear))
+        self._path_end = tuple(value[..., -1].copy() for value in (stamps, xs, ys, linear))
+        self.steps = 0
+        return frame
+
+
+def _strips(stamps, xs, ys, linear):
+    """
+    Return each robot's path through xs, ys (count, points) as strips (count, points, 3).
+
+    A step longer than the robot can have driven in it is a jump (a reset, a new initial
+    pose): the robot's points before it are moved onto the point after it, so no segment
+    joins the jump's two ends.  None with fewer than two points.
+    """
+    if xs.shape[1] < 2:
+        return None
+    reach = (np.maximum(np.abs(linear[:, 1:]), np.abs(linear[:, :-1])) * (np.diff(stamps) * 1e-9)
+             + _JUMP_MARGIN_M)
+    jumps = np.hypot(np.diff(xs), np.diff(ys)) > reach
+    xs, ys = xs.copy(), ys.copy()
+    for robot, after in zip(*np.nonzero(jumps)):  # rare: one loop turn per jump
+        xs[robot, :after + 1] = xs[robot, after + 1]
+        ys[robot, :after + 1] = ys[robot, after + 1]
+    return np.stack([xs, ys, np.zeros_like(xs)], axis=2)
+
+
+def rerun_program():
+    """Return the path of the rerun program the rerun-sdk wheel installed."""
+    try:
+        import rerun_cli
+    except ImportError:
+        rerun_cli = None
+    if rerun_cli is not None:
+        program = os.path.join(os.path.dirname(rerun_cli.__file__), 'rerun')
+        if os.access(program, os.X_OK):
+            return program
+    program = shutil.which('rerun')
+    if program is None:
+        raise ImportError('the rerun program of rerun-sdk is not installed')
+    return program
+
+
+def robot_colors(count):
+    """Return count distinct RGB colours (uint8), the same for the same index in every run."""
+    hues = (0.07 + _GOLDEN * np.arange(count)) % 1.0  # orange first: not Rerun's own blue
+    return (np.stack([_hsv_channel(hues, shift) for shift in (5.0, 3.0, 1.0)], axis=1)
+            * 255).round().astype(np.uint8)
+
+
+def _hsv_channel(hues, shift, saturation=0.75, value=0.9):
+    k = (shift + hues * 6.0) % 6.0
+    return value - value * saturation * np.clip(np.minimum(k, 4.0 - k), 0.0, 1.0)
+
+
+def _grpc_port(host, view_port):
+    """Return view_port + 1 when free (the same address to open, run after run), else any."""
+    if 0 < view_port < 65535:
+        with socket.socket() as probe:
+            # As a server binds (the rerun program too): a past run's closed connections on
+            # the port, waiting out TIME_WAIT, do not keep it.
+            probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+            try:
+                probe.bind((host, view_port + 1))
+                return view_port + 1
+            except OSError:
+                pass
+    return _free_port(host)
+
+
+def _free_port(host):
+    with socket.socket() as probe:
+        probe.bind((host, 0))
+        return probe.getsockname()[1]
+
+
+def _listening(host, port):
+    try:
+        with socket.create_connection((host, port), timeout=0.5):
+            return True
+    except OSError:
+        return False
+
+
+def _stop(process):
+    """Stop a child politely (SIGTERM), then for sure (SIGKILL), and reap it."""
+    if process.poll() is None:
+        process.terminate()
+        try:
+            process.wait(timeout=STOP_TIMEOUT_S)
+        except subprocess.TimeoutExpired:
+            process.kill()
+    process.wait()

@@ -1,0 +1,167 @@
+# Copyright 2026 motion_challenges contributors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The browser view's page: Rerun's web viewer, confined to this machine (no ROS imports).
+
+The ``rerun`` program serves its viewer (index.html, re_viewer.js, re_viewer_bg.wasm) on a
+private port; ``ViewerPage`` serves the same files on the user's ``view_port`` with one
+difference that matters offline and for privacy: a Content-Security-Policy that lets the page
+talk to this machine's viewer and gRPC ports only.  Rerun 0.41's page otherwise asks Google
+for a web font, GitHub for the latest release, app.rerun.io for its examples and sends usage
+analytics to tel.rerun.io (its web build has no switch for that); under the policy the
+browser sends none of those requests, and the viewer, built to run offline, shows the run
+all the same.  The font links are also taken out of index.html, so the page does not even
+try, and a small script goes in that reloads the page when another run serves the port.
+Requests whose Host is not this machine's are refused (DNS rebinding).
+"""
+
+import functools
+import http.client
+from http.server import BaseHTTPRequestHandler
+from http.server import ThreadingHTTPServer
+import re
+import threading
+
+# What the page may load and talk to: itself, and the gRPC port the viewer streams from.
+# wasm-unsafe-eval compiles the viewer's WebAssembly; inline script and style are index.html's.
+CSP = ("default-src 'self'; script-src 'self' 'unsafe-inline' 'wasm-unsafe-eval'; "
+       "style-src 'self' 'unsafe-inline'; img-src 'self' data: blob:; font-src 'self' data:; "
+       "worker-src 'self' blob:; connect-src 'self' {grpc}; form-action 'none'; "
+       "base-uri 'none'; frame-ancestors 'none'")
+_FONT_LINK = re.compile(rb'<link\b[^>]*fonts\.(?:googleapis|gstatic)\.com[^>]*>')
+_CHUNK = 1 << 20
+# The page asks the port which run it serves (its id and gRPC address), once a second, and opens
+# the new one when that changed: a simulator started again on the same view_port (make demo
+# starts one per motion) shows at once.
+RUN_PATH = '/run'
+_FOLLOW = (f"<script>setInterval(() => fetch('{RUN_PATH}').then(r => r.text()).then(run => {{"
+           " const [id, url] = run.split(' '); if (id && url && id !== 'RUN')"
+           " location.replace('/?url=' + encodeURIComponent(url)); }).catch(() => {}), 1000);"
+           '</script>')
+_LOCAL_HOSTS = ('127.0.0.1', 'localhost')
+# Headers of the upstream answer passed on (rerun-final-length drives the page's progress bar).
+_PASSED_HEADERS = ('content-type', 'rerun-final-length', 'content-encoding')
+
+
+def page_url(port, grpc_url):
+    """Return the address to open: the viewer on port, told to stream from grpc_url."""
+    from urllib.parse import quote
+    return f'http://127.0.0.1:{port}/?url={quote(grpc_url, safe="")}'
+
+
+def confine(html):
+    """Return index.html without the links to Google's web font (the page's other styles stay)."""
+    return _FONT_LINK.sub(b'', html)
+
+
+def follow(html, run):
+    """Return index.html that opens the next run to serve this port (see RUN_PATH)."""
+    script = _FOLLOW.replace('RUN', run).encode()
+    return html.replace(b'</body>', script + b'</body>', 1)
+
+
+class ViewerPage:
+    """Serve the viewer's files from the rerun program on upstream_port, on host:port."""
+
+    def __init__(self, host, port, upstream_port, grpc_origins, run):
+        """
+        Listen on host:port now (OSError when the port is taken) and serve from a thread.
+
+        grpc_origins: the origins (``http://127.0.0.1:PORT``) the page may stream from; run:
+        (id, gRPC url) of this run (the id letters and digits), for the page to follow runs.
+        """
+        handler = functools.partial(
+            _PageHandler, upstream_port=upstream_port,
+            csp=CSP.format(grpc=' '.join(grpc_origins)), run=run)
+        self._server = ThreadingHTTPServer((host, port), handler)
+        self._server.daemon_threads = True
+        self.port = self._server.server_address[1]
+        self._thread = threading.Thread(
+            target=self._server.serve_forever, kwargs={'poll_interval': 0.2},
+            name=f'view_page:{self.port}', daemon=True)
+        self._thread.start()
+
+    def close(self):
+        """Stop serving and free the port (idempotent)."""
+        server, self._server = self._server, None
+        if server is not None:
+            server.shutdown()
+            server.server_close()
+            self._thread.join(timeout=5.0)
+
+
+class _PageHandler(BaseHTTPRequestHandler):
+    """GET: the upstream file, under the policy; index.html without the font links."""
+
+    def __init__(self, *args, upstream_port, csp, run, **kwargs):
+        self._upstream_port = upstream_port
+        self._csp = csp
+        self._run = run
+        super().__init__(*args, **kwargs)
+
+    def do_GET(self):  # noqa: N802 (the name http.server dispatches to)
+        port = self.server.server_address[1]
+        if self.headers.get('Host') not in {f'{host}:{port}' for host in _LOCAL_HOSTS}:
+            self.send_error(403, 'this viewer answers to 127.0.0.1 and localhost only')
+            return
+        path = self.path.split('?', 1)[0]
+        if path == RUN_PATH:
+            self._answer(' '.join(self._run).encode(), 'text/plain')
+            return
+        upstream = http.client.HTTPConnection('127.0.0.1', self._upstream_port, timeout=10.0)
+        try:
+            try:
+                upstream.request('GET', path)
+                answer = upstream.getresponse()
+            except OSError as error:
+                self.send_error(502, f'the rerun program did not answer: {error}')
+                return
+            if path in ('/', '/index.html') and answer.status == 200:
+                self._send(answer, follow(confine(answer.read()), self._run[0]))
+            else:
+                self._send(answer)
+        except (ConnectionError, TimeoutError):
+            pass  # the browser left (a tab closed mid-download) or the upstream stalled
+        finally:
+            upstream.close()
+
+    def _send(self, answer, body=None):
+        self.send_response(answer.status)
+        for name in _PASSED_HEADERS:
+            if answer.getheader(name) is not None:
+                self.send_header(name, answer.getheader(name))
+        if body is not None:
+            self.send_header('Content-Length', str(len(body)))
+        self.send_header('Content-Security-Policy', self._csp)
+        self.send_header('Cache-Control', 'no-cache')
+        self.end_headers()
+        if body is not None:
+            self.wfile.write(body)
+            return
+        # HTTP/1.0: the body ends when the connection closes, so it can stream as it comes.
+        while chunk := answer.read(_CHUNK):
+            self.wfile.write(chunk)
+
+    def _answer(self, body, content_type):
+        self.send_response(200)
+        self.send_header('Content-Type', content_type)
+        self.send_header('Content-Length', str(len(body)))
+        self.send_header('Content-Security-Policy', self._csp)
+        self.send_header('Cache-Control', 'no-store')
+        self.end_headers()
+        self.wfile.write(body)
+
+    def log_message(self, format, *args):  # noqa: A002 (http.server's signature)
+        pass  # a page load is not news; failures reach the browser

@@ -1,0 +1,278 @@
+# Copyright 2026 motion_challenges contributors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+view_port: the run in a real browser, as a user opens it.
+
+Headless Chromium (Debian's package, driven by Playwright; WebGL2 through SwiftShader) opens
+the address the simulator logs, and the screenshots must show the robot, drawn in its colour
+where it is: nothing before the first step, then a track that grows upwards while it drives
+along +y (ROS's frame the right way up).  The page must not send a request off this machine.
+A client that leaves mid-run changes nothing in the simulation; a port in use, rerun-sdk
+missing: the simulator says so and runs on; the rerun program never outlives the simulator.
+"""
+
+import io
+import math
+import os
+import re
+import shutil
+import signal
+import socket
+import time
+import urllib.request
+
+import numpy as np
+import pytest
+from sim_diffdrive import harness
+from sim_diffdrive.taps.view import robot_colors
+from sim_diffdrive.taps.view_page import confine
+
+pytest.importorskip('rerun')
+
+CHROMIUM = shutil.which('chromium') or shutil.which('chromium-browser')
+CHROMIUM_FLAGS = [
+    '--no-sandbox', '--enable-unsafe-swiftshader', '--use-angle=swiftshader',
+    '--ignore-gpu-blocklist', '--disable-background-networking', '--disable-component-update',
+    '--disable-sync', '--no-first-run']
+PAGE_SIZE = {'width': 800, 'height': 500}
+# The top view fills the left three fifths of the page, under the viewer's menu bar.
+TOP_VIEW = (slice(60, 470), slice(0, 470))
+ROBOT_RGB = robot_colors(1)[0].astype(int)
+# How much of the robot's colour a drawn robot (box, arrow and label) shows, at least [px].
+ROBOT_PIXELS = 150
+
+
+def free_port():
+    with socket.socket() as s:
+        s.bind(('127.0.0.1', 0))
+        return s.getsockname()[1]
+
+
+@pytest.fixture(scope='module')
+def browser():
+    if CHROMIUM is None:
+        pytest.skip('no chromium (make venv installs it: apt-get install chromium)')
+    sync_api = pytest.importorskip('playwright.sync_api')
+    with sync_api.sync_playwright() as playwright:
+        chromium = playwright.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_FLAGS)
+        try:
+            yield chromium
+        finally:
+            chromium.close()
+
+
+class ViewerTab:
+    """A browser tab on the view; every request it makes off this machine is refused and kept."""
+
+    def __init__(self, browser, url):
+        self.page = browser.new_page(viewport=PAGE_SIZE)
+        self.outside = []
+        self.page.route(re.compile(r'^(?!https?://(127\.0\.0\.1|localhost)[:/])'),
+                        self._refuse)
+        # Loaded, its WebAssembly started and streaming from the simulator's rerun program.
+        with self.page.expect_request(lambda request: 'ReadMessages' in request.url,
+                                      timeout=60_000):
+            self.page.goto(url)
+        self.page.wait_for_selector('canvas', timeout=10_000)
+
+    def _refuse(self, route):
+        self.outside.append(route.request.url)
+        route.abort()
+
+    def robot_pixels(self):
+        """Return the (row, column) of every pixel of the top view in the robot's colour."""
+        from PIL import Image
+        image = Image.open(io.BytesIO(self.page.screenshot()))
+        if os.environ.get('VIEW_SHOTS'):
+            image.save(os.path.join(os.environ['VIEW_SHOTS'], f'{time.monotonic():.1f}.png'))
+        shot = np.asarray(image.convert('RGB'))
+        view = shot[TOP_VIEW].astype(int)
+        near = np.abs(view - ROBOT_RGB).sum(axis=2) < 60
+        return np.argwhere(near)
+
+    def wait_for_robot(self, more_than=ROBOT_PIXELS, timeout=20.0):
+        """Return the robot's pixels once the view shows more than more_than of them."""
+        deadline = time.monotonic() + timeout
+        while len(pixels := self.robot_pixels()) <= more_than:
+            assert time.monotonic() < deadline, (
+                f'{len(pixels)} pixels of the robot after {timeout} s')
+            time.sleep(0.2)
+        return pixels
+
+    def close(self):
+        self.page.close()
+
+
+def test_the_browser_shows_the_robot_driving_up_the_screen(graph, browser):
+    port = free_port()
+    sim = graph.sim(view_port=port, initial_yaw=math.pi / 2, cmd_vel_timeout=0.0)
+    url = sim.taps.named('view_port').url
+    assert url.startswith(f'http://127.0.0.1:{port}/?url=rerun%2Bhttp%3A%2F%2F127.0.0.1%3A')
+    tab = ViewerTab(browser, url)
+    try:
+        # The robot at rest where it starts: a box in its colour, seen from above.
+        start = tab.wait_for_robot(more_than=20)
+        assert len(start) < ROBOT_PIXELS  # no track yet
+        probe = graph.probe(name='driver')
+        graph.step()  # (the graph counts messages once its nodes have discovered each other)
+        probe.send(0.5, 0.0)  # along +y: up the screen, if ROS's frame is drawn the right way
+        graph.step(150)
+        track = tab.wait_for_robot()
+        assert graph.pose() == pytest.approx((0.0, 1.5, math.pi / 2), abs=1e-9)
+        # The track begins where the robot stood and grows upwards (smaller rows).
+        rows, columns = track[:, 0], track[:, 1]
+        assert start[:, 0].min() < rows.max() < start[:, 0].max()
+        assert rows.min() < start[:, 0].min() - 50
+        assert columns.max() - columns.min() < (rows.max() - rows.min()) / 2
+        assert abs(np.median(columns) - np.median(start[:, 1])) < 5
+        assert tab.outside == []  # the page asked nothing of any other machine
+    finally:
+        tab.close()
+
+
+def test_a_client_that_leaves_mid_run_disturbs_nothing(graph, browser):
+    port = free_port()
+    sim = graph.sim(view_port=port, robots=['robot1', 'robot2'])
+    view = sim.taps.named('view_port')
+    one, two = graph.probe(name='one', namespace='robot1'), graph.probe(
+        name='two', namespace='robot2')
+    graph.step()  # (the graph counts messages once its nodes have discovered each other)
+    one.send(0.5, 0.5)  # each drives until its command times out, 0.5 s later
+    two.send(-0.2, 0.0)
+    graph.step(5)
+    ViewerTab(browser, view.url).close()  # gone while the viewer streams
+    # A download cut off halfway (the viewer's 40 MB of WebAssembly).
+    with urllib.request.urlopen(f'http://127.0.0.1:{port}/re_viewer_bg.wasm') as answer:
+        assert len(answer.read(1 << 20)) == 1 << 20
+    graph.step(45)
+    x, y, yaw = graph.pose('robot1')
+    assert (x, y, yaw) == pytest.approx((math.sin(0.25), 1.0 - math.cos(0.25), 0.25), abs=1e-12)
+    assert graph.pose('robot2') == pytest.approx((-0.1, 0.0, 0.0), abs=1e-12)
+    assert sim.taps  # the view is still there, and still serves the page
+    with urllib.request.urlopen(f'http://127.0.0.1:{port}/') as answer:
+        assert b're_viewer.js' in answer.read()
+
+
+def test_the_page_allows_this_machine_only(graph):
+    port = free_port()
+    sim = graph.sim(view_port=port)
+    grpc_port = int(re.search(r':(\d+)/proxy', sim.taps.named('view_port').grpc_url).group(1))
+    with urllib.request.urlopen(f'http://localhost:{port}/') as answer:
+        page = answer.read()
+        policy = answer.headers['Content-Security-Policy']
+    assert b'fonts.googleapis.com' not in page and b'<canvas' in page
+    assert b"fetch('/run')" in page  # the page follows the next run on this port
+    with urllib.request.urlopen(f'http://127.0.0.1:{port}/run') as answer:
+        run, grpc_url = answer.read().decode().split(' ')
+    assert grpc_url == sim.taps.named('view_port').grpc_url and re.fullmatch('[0-9a-f]{32}', run)
+    assert f"connect-src 'self' http://127.0.0.1:{grpc_port} http://localhost:{grpc_port};" \
+        in policy
+    assert "default-src 'self';" in policy
+    request = urllib.request.Request(f'http://127.0.0.1:{port}/',
+                                     headers={'Host': f'attacker.example:{port}'})
+    with pytest.raises(urllib.error.HTTPError, match='403'):
+        urllib.request.urlopen(request)
+
+
+def test_the_font_links_are_taken_out_and_nothing_else():
+    html = (b'<head>\n<link rel="preconnect" href="https://fonts.googleapis.com" />\n'
+            b'<link\n  href="https://fonts.googleapis.com/css2?family=Inter"\n'
+            b'  rel="stylesheet"\n/>\n<link rel="icon" href="favicon.ico" />\n</head>')
+    assert confine(html) == b'<head>\n\n\n<link rel="icon" href="favicon.ico" />\n</head>'
+
+
+def test_a_port_in_use_is_reported_and_the_simulator_runs(procs):
+    with socket.socket() as taken:
+        taken.bind(('127.0.0.1', 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        sim = procs('unicycle_sim', 'unicycle_sim',
+                    *harness.ros_params(f'view_port:={port}', 'publish_clock:=true'))
+        assert wait_for_line(sim, 'publishing /clock'), sim.describe()
+        output = harness.stop(sim)
+    assert sim.returncode == 0, output
+    assert 'view_port: [Errno 98] Address already in use. Running without it.' in output
+    assert output.count('view_port') == 1 and 'Traceback' not in output
+
+
+def test_without_rerun_sdk_the_simulator_says_so_and_runs(graph, tmp_path):
+    code = ('import sys; sys.modules["rerun"] = None\n'
+            'from sim_diffdrive.sim.node import main\n'
+            f'sys.exit(main(["unicycle_sim", *{harness.ros_params("view_port:=9090")}]))')
+    sim = harness.start_python(code, log_path=tmp_path / 'sim.log')
+    try:
+        graph.wait_for_odometry(process=sim)
+    finally:
+        output = harness.stop(sim)
+    assert ('view_port needs the Python package rerun-sdk (import of rerun halted; None in '
+            'sys.modules); pip install rerun-sdk. Running without it.') in output
+    assert 'Traceback' not in output
+
+
+@pytest.mark.parametrize('signum', [signal.SIGINT, signal.SIGTERM, signal.SIGKILL])
+def test_the_rerun_program_ends_with_the_simulator(procs, signum):
+    if signum == signal.SIGKILL and shutil.which('setpriv') is None:
+        pytest.skip('without setpriv (util-linux) a killed simulator leaves rerun behind')
+    port = free_port()
+    sim = procs('unicycle_sim', 'unicycle_sim', *harness.ros_params(f'view_port:={port}'))
+    assert wait_for_line(sim, 'Browser view: open'), sim.describe()
+    rerun = children(sim.pid)
+    assert len(rerun) == 1 and 'rerun' in command_line(rerun[0]), rerun
+    sim.send(signum)
+    sim.wait(10.0)
+    deadline = time.monotonic() + 5.0
+    while alive(rerun[0]):
+        assert time.monotonic() < deadline, f'rerun ({rerun[0]}) outlived the simulator'
+        time.sleep(0.05)
+    with socket.socket() as again:  # and the port is free again
+        again.bind(('127.0.0.1', port))
+
+
+def children(pid):
+    """Return the pids whose parent is pid (Linux /proc)."""
+    found = []
+    for entry in os.listdir('/proc'):
+        if entry.isdigit():
+            try:
+                with open(f'/proc/{entry}/stat') as stat:
+                    fields = stat.read().rsplit(')', 1)[1].split()
+            except OSError:
+                continue
+            if int(fields[1]) == pid:
+                found.append(int(entry))
+    return found
+
+
+def alive(pid):
+    """Return whether pid runs (a zombie has ended: whoever adopted it reaps it)."""
+    try:
+        with open(f'/proc/{pid}/stat') as stat:
+            return stat.read().rsplit(')', 1)[1].split()[0] != 'Z'
+    except OSError:
+        return False
+
+
+def command_line(pid):
+    with open(f'/proc/{pid}/cmdline', 'rb') as cmdline:
+        return cmdline.read().replace(b'\0', b' ').decode()
+
+
+def wait_for_line(process, text, timeout=20.0):
+    deadline = time.monotonic() + timeout
+    while text not in process.output():
+        if time.monotonic() > deadline or process.poll() is not None:
+            return False
+        time.sleep(0.05)
+    return True
