@@ -146,7 +146,7 @@ def test_quick_run_writes_every_row(tmp_path):
         assert row['result'] in ('met', 'missed', '-'), key
         assert (row['target'] == '-') == (row['result'] == '-'), key
     rows = {key: row['data'] for key, row in report['rows'].items()}
-    sizes = core.sizes(quick=True)
+    sizes = core.Run(quick=True).sizes
     original = rows['rotate_timed']['original_errors_deg']
     assert len(original) == sizes.starts
     assert original[0] == pytest.approx(29.939, abs=1e-3)

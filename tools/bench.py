@@ -15,15 +15,13 @@
 """
 Benchmark this package against the programs it replaces and print one table (``make bench``).
 
-Each row puts this project's figure next to a reference measured in the same run (the original
-program, Euler integration, another executor, ...) and, where the project has a target, whether
-it was met.  The rows are in tools/benchmark/; their raw numbers go to the JSON.  The run has a
-ROS domain of its own (random in 1..100 unless --domain-id), discovery on this machine only.
+Each row puts this project's figure next to a reference measured in the same run and, where
+the project has a target, whether it was met; the raw numbers go to the JSON.  On a ROS domain
+of its own (random in 1..100 unless --domain-id), discovery on this machine only.
 """
 
 import argparse
 import json
-import math
 import os
 from pathlib import Path
 import signal
@@ -59,15 +57,6 @@ def print_table(rows):
                              for w, width in zip(wrapped, widths)).rstrip())
         print('-+-'.join('-' * w for w in widths))
     print('\nNotes:\n' + '\n'.join(f'{i}. {r["note"]}' for i, r in enumerate(rows.values(), 1)))
-
-
-def jsonable(value):
-    """Return value with str keys, numpy numbers as Python ones, NaN and infinity as None."""
-    if isinstance(value, (dict, list, tuple)):
-        return ({str(k): jsonable(v) for k, v in value.items()} if isinstance(value, dict)
-                else [jsonable(v) for v in value])
-    value = value.item() if hasattr(value, 'item') else value
-    return None if isinstance(value, float) and not math.isfinite(value) else value
 
 
 def main(argv=None):
@@ -111,9 +100,9 @@ def main(argv=None):
     print_table(rows)
     path = Path(options.json)
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(jsonable({'machine': info, 'quick': options.quick, 'rows': rows,
-                                         'domain_id': domain_id, 'wall_s': wall_s}),
-                               indent=2, allow_nan=False) + '\n')
+    report = json.dumps({'machine': info, 'quick': options.quick, 'domain_id': domain_id,
+                         'wall_s': wall_s, 'rows': rows})  # then NaN and infinity as null
+    path.write_text(json.dumps(json.loads(report, parse_constant=lambda _: None), indent=2))
     print(f'\nJSON: {path}')
     return 0
 

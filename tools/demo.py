@@ -15,13 +15,10 @@
 """
 Run every motion against the simulator as separate processes over DDS; print a table and a figure.
 
-Each motion runs on a fresh ``unicycle_sim`` that owns time (real_time_factor --rtf, an upper
-bound: it steps in lockstep with the motion, so every row is exact on a loaded machine too),
-with its answers as parameters: the run of the benchmark's row 7 (``watch_motion``).  The
-table compares the resting pose with the goal and gives the simulated and wall seconds of the
-movement; the figure (``demo.png``) draws each path, heading and speeds, the commands from the
-simulator's recording (``out/<motion>.mcap``; --record-dir '' for none).  Exit code 1 when a
-motion failed.  On a ROS domain of its own, discovery on this machine only.
+Each motion runs against a fresh ``unicycle_sim`` owning time (real_time_factor --rtf, a bound:
+they step in lockstep, so every row is exact on a loaded machine too), as in the benchmark's
+row 7 (``watch_motion``).  The figure draws each path, heading and speeds, the commands from
+the simulator's recording (``out/<motion>.mcap``).  Exit code 1 when a motion failed.
 """
 
 import argparse
@@ -42,30 +39,19 @@ DEMO = ('rotate', 'rotate_odom', 'circle_5s', 'out_and_back', 'odom_out_and_back
 RECORD_DIR = Path(__file__).resolve().parents[1] / 'out'
 
 
-def recording(motion, record_dir):
-    """Return the MCAP file of a motion's run: its label as a file name."""
+def recording(motion, record_dir):  # the MCAP file of a motion's run
     name = re.sub(r'[^a-z0-9]+', '_', MOTIONS[motion][0].lower()).strip('_')
     return Path(record_dir) / f'{name}.mcap'
 
 
-def recorded_commands(path):
-    """Return (sim ns, linear, angular) of every command in a recording ([] without one)."""
-    from geometry_msgs.msg import Twist
-    from geometry_msgs.msg import TwistStamped
-    from mcap.reader import make_reader
-    from rclpy.serialization import deserialize_message
-    heard = []
-    with open(path, 'rb') as stream:
-        for schema, _, message in make_reader(stream).iter_messages(topics=['/cmd_vel']):
-            stamped = schema.name == 'geometry_msgs/msg/TwistStamped'
-            msg = deserialize_message(message.data, TwistStamped if stamped else Twist)
-            msg = msg.twist if stamped else msg
-            heard.append((message.log_time, msg.linear.x, msg.angular.z))
-    return heard
+def recorded_commands(path):  # (sim ns, linear, angular) of every Twist(Stamped) recorded
+    from mcap_ros2.reader import read_ros2_messages
+    twists = ((m.log_time_ns, getattr(m.ros_msg, 'twist', m.ros_msg))
+              for m in read_ros2_messages(str(path), topics=['/cmd_vel']))
+    return [(t, twist.linear.x, twist.angular.z) for t, twist in twists]
 
 
 def cells(motion, result):
-    """Return the table cells of one run."""
     def fmt(pose):
         return f'({pose[0]:.4f}, {pose[1]:.4f}, {math.degrees(pose[2]):.3f} deg)'
     if 'end' not in result:
@@ -77,12 +63,7 @@ def cells(motion, result):
 
 
 def run_series(result, commands):
-    """
-    Return the run's RunSeries (motion_challenges.plotting), None if nothing moved.
-
-    From the motion's start (the last odometry at rest, or the first moving command if
-    earlier), with 0.2 s before it and 0.5 s after the robot came to rest.
-    """
+    """Return the RunSeries from 0.2 s before the motion's start to 0.5 s after its rest."""
     from motion_challenges.plotting import time_series
 
     odometry = [(int(harness.stamp_s(odom) * 1e9), harness.pose_of(odom)[2],
@@ -133,22 +114,28 @@ def write_figure(runs, filename):
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
-    parser.add_argument('--rtf', type=float, default=50.0, help='upper bound of simulated '
-                        'seconds per wall second (default: %(default)s)')
+    parser.add_argument('--rtf', type=float, help='upper bound of simulated seconds per '
+                        'wall second (default: 50; 2 with --view)')
+    parser.add_argument('--view', type=int, default=0, metavar='PORT', help='watch every run '
+                        'live in a browser at http://127.0.0.1:PORT/ (needs rerun-sdk)')
     parser.add_argument('--figure', default='demo.png', help='default: %(default)s')
     parser.add_argument('--record-dir', default=str(RECORD_DIR), help='default: %(default)s')
     options = parser.parse_args()
+    options.rtf = options.rtf or (2.0 if options.view else 50.0)
     record_dir = Path(options.record_dir).resolve() if options.record_dir else None
     if record_dir:
         record_dir.mkdir(parents=True, exist_ok=True)
     graph, run, runs = harness.SimGraph(), Run(), []  # the processes share its domain
     print(f'ROS_DOMAIN_ID={os.environ["ROS_DOMAIN_ID"]}, localhost only, real-time factor '
           f'{options.rtf:g}', flush=True)
+    if options.view:  # each motion's simulator serves it; the page follows from one to the next
+        print(f'Watch it live: open http://127.0.0.1:{options.view}/ in a browser', flush=True)
     wall_start = time.monotonic()
     try:
         for i, motion in enumerate(DEMO, 1):
             print(f'[{i}/{len(DEMO)}] {MOTIONS[motion][0]} ...', flush=True)
             record = {'record_file': str(recording(motion, record_dir))} if record_dir else {}
+            record.update({'view_port': options.view} if options.view else {})
             result = watch_motion(graph, run.start, run.stop, motion, options.rtf, **record)
             if result['exit'] != 0:
                 print(f'  exit {result["exit"]}; its last lines:\n{tail(result["log"], 8)}')

@@ -34,8 +34,7 @@ FINAL = (0.777, -0.555)
 EDGE_S = 0.5  # left out of the flood's odometry rate at its start and end: a steady flood
 
 
-def flood(argv):
-    """Publish cmd_vel as told (one publisher process); print a JSON summary."""
+def flood(argv):  # the publisher process (see the module's docstring)
     parser = argparse.ArgumentParser(prog='stress.py flood')
     parser.add_argument('--rate', type=float, default=10000.0, help='Hz; 0 = flat out')
     parser.add_argument('--seconds', type=float, default=10.0)

@@ -13,11 +13,10 @@
 # limitations under the License.
 
 """
-The benchmark's rows (``python tools/bench.py``), from the bottom up.
+The rows of ``python tools/bench.py``, from the bottom up.
 
-``originals``: the ROS 1 programs as pure scripts, and the pure maths; ``core``: Row, the
-registry, Run; ``one_process``: rows 1-6, in one process, in lockstep; ``processes``: rows 7-12,
-the executables over DDS; ``fleet``: rows 13-17, many robots in one simulator.  A row is a
-function ``@row('group') def key(run): return Row(measure, project, reference, note, target,
-met, data)``, using ``run.once(measure, *args)`` for what rows share.
+``originals`` (the ROS 1 programs, pure maths), ``core`` (Row, the ``@row(group)`` registry,
+Run), ``one_process`` (rows 1-6), ``processes`` (7-12), ``fleet`` (13-17).  A row is
+``@row('group') def key(run): return Row(measure, project, reference, note, target, met,
+data)``, with ``run.once(measure, *args)`` for what rows share.
 """

@@ -14,8 +14,8 @@
 
 """The table's Row, the registry of rows, the Run (sizes, processes, measurements), formats."""
 
+from dataclasses import asdict
 from dataclasses import dataclass
-from dataclasses import field
 import math
 import os
 import subprocess
@@ -38,23 +38,17 @@ SIZES = {  # each: (make bench, --quick)
     # The three default motions of the real-time factor rows, shortened with --quick.
     'circle_rtf': ({'cycles': 1, 'half_period': 15.0}, {'cycles': 1, 'half_period': 0.5}),
     'out_and_back_rtf': ({}, {'goal_distance': 0.05, 'angular_speed': 4.0, 'pause': 0.0}),
-    'process_motions': (('rotate', 'circle', 'out_and_back'), ('rotate',)),
-    'process_runs': (2, 1),  # two show whether runs are identical
+    'process_motions': (('rotate', 'circle', 'out_and_back'), ('rotate',)), 'process_runs': (2, 1),
     'robots': ((1, 4, 16), (1, 2)), 'robots_processes': ((1, 4, 16), (1,)),
     # What each robot of rows 11, 12 and 17 drives: odom_out_and_back, shortened.
     'scaling_motion': ({'goal_distance': 0.2, 'angular_speed': 2.0, 'pause': 0.2},
                        {'goal_distance': 0.1, 'angular_speed': 4.0, 'pause': 0.1, 'legs': 1}),
-    'scaling_window_s': (2.0, 0.5),
+    'scaling_window_s': (2.0, 0.5), 'fleet_settle_s': (0.5, 0.05), 'fleet_window_s': (3.0, 0.1),
     'fleet_robots': ((1, 16, 64, 256), (1, 4)), 'fleet_free_robots': ((1, 16, 64, 256), (4,)),
-    'fleet_settle_s': (0.5, 0.05), 'fleet_window_s': (3.0, 0.1),
     'fleet_messages': (10000, 500),  # Odometry publishes for rclpy's cost per message
     'fleet_motion_robots': (16, 1),  # robots_processes[-1]: row 17 reuses row 12's pairs
 }
 ROWS = {}  # key -> (group, function(run) -> Row), in table order
-
-
-def sizes(quick):
-    return SimpleNamespace(quick=quick, **{name: both[quick] for name, both in SIZES.items()})
 
 
 def row(group):
@@ -66,8 +60,7 @@ def row(group):
 
 
 @dataclass
-class Row:
-    """A row's cells (met: None without a target), its note and its raw numbers."""
+class Row:  # the table's cells (met: None without a target), a note, the raw numbers
 
     measure: str
     project: str
@@ -75,19 +68,19 @@ class Row:
     note: str
     target: str = '-'
     met: bool = None
-    data: dict = field(default_factory=dict)
+    data: dict = None
 
     def report(self):
-        result = '-' if self.met is None else 'met' if self.met else 'missed'
-        return {'measure': self.measure, 'project': self.project, 'reference': self.reference,
-                'target': self.target, 'result': result, 'note': self.note, 'data': self.data}
+        met = None if self.met is None else bool(self.met)
+        return {**asdict(self), 'met': met, 'result': {None: '-', True: 'met', False: 'missed'}[
+            met]}
 
 
-class Run:
-    """One run: its sizes, the processes it started, what its rows measured."""
+class Run:  # one run: its sizes, the processes it started, what its rows measured
 
     def __init__(self, quick=False, rtf=100.0):
-        self.sizes, self.rtf, self.running, self.measurements = sizes(quick), rtf, [], {}
+        self.sizes = SimpleNamespace(quick=quick, **{k: v[quick] for k, v in SIZES.items()})
+        self.rtf, self.running, self.measurements = rtf, [], {}
 
     def once(self, measure, *args, **kwargs):
         """Return measure(run, *args, **kwargs), measured at its first use in this run."""
@@ -95,9 +88,6 @@ class Run:
         if key not in self.measurements:
             self.measurements[key] = measure(self, *args, **kwargs)
         return self.measurements[key]
-
-    def measured(self, measure, *args):
-        return (measure.__name__, args, ()) in self.measurements
 
     def start(self, executable, *args, namespace=None, stdin=subprocess.DEVNULL, **params):
         """Start an executable (harness.start) with ROS parameters, bools as true/false."""
@@ -149,6 +139,5 @@ def fmt_x(factor):
     return f'{factor:.1f}x' if math.isfinite(factor) else '-'
 
 
-def by_n(values, fmt=fmt_x):
-    """Format {N: value} as 'N=1: 2.0x, N=4: ...'."""
+def by_n(values, fmt=fmt_x):  # 'N=1: 2.0x, N=4: ...'
     return ', '.join(f'N={n}: {fmt(value)}' for n, value in values.items())

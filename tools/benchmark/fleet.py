@@ -12,13 +12,7 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""
-Rows 13-17: many robots in one ``unicycle_sim`` process (its ``robots`` parameter).
-
-Its CPU and achievable real-time factor for N robots, idle and with every robot commanded
-(by ``load()``, a process of its own); its cost per robot next to rclpy's per Odometry
-message; N motions against one simulator and one ``motion_fleet`` next to row 12's pairs.
-"""
+"""Rows 13-17: many robots in one ``unicycle_sim`` process (its ``robots`` parameter)."""
 
 import math
 import os
@@ -30,8 +24,6 @@ from benchmark.core import Row
 from benchmark.core import row
 from benchmark.processes import drive_text
 from benchmark.processes import motions_run
-from benchmark.processes import session
-from benchmark.processes import yaml_list
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
@@ -50,6 +42,7 @@ from sim_diffdrive.sim.node import PARAMETERS
 RATE_HZ = 50.0
 FREE_CLOCK_RTF = 10000.0  # the achievable factor's real_time_factor: far above what it reaches
 PAUSED_RTF = 0.001  # until measured: one step per 20 s of wall time
+fmt3 = '{:.3f}'.format
 LOAD = ('import sys; sys.path.insert(0, %r); from benchmark.fleet import load; '
         'load(*sys.argv[1:4])' % os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
@@ -81,30 +74,23 @@ def window(graph, pid, first, seconds):
 
 def start_sims(run, graph, counts, free_clock):
     """
-    Start a unicycle_sim with robots r0.. for each count, each in a namespace of its own.
+    Start a unicycle_sim with robots r0.. per count; {count: (process, ns, probe r0, last)}.
 
-    free_clock: owning /clock (lockstep), held at PAUSED_RTF (costing nothing) until measured;
-    otherwise on wall time.  Returns {count: (process, namespace, probes on r0 and the last)}.
+    free_clock: owning /clock, held at PAUSED_RTF (costing nothing) until measured.
     """
-    mode = {'publish_clock': True, 'real_time_factor': PAUSED_RTF} if free_clock else {}
     sims = {}
     for n in counts:
         ns = f'/fleet_{"lockstep" if free_clock else "wall"}_{n}'
         probes = {k: graph.probe('fleet', f'{ns}/r{k}', False, listen_only=True,
                                  enable_rosout=False) for k in {0, n - 1}}
-        sims[n] = (run.start('unicycle_sim', namespace=ns, rate_hz=RATE_HZ, **mode,
-                             robots=yaml_list(f'r{k}' for k in range(n))), ns, probes[0],
-                   probes[n - 1])
+        sims[n] = (run.start('unicycle_sim', namespace=ns, rate_hz=RATE_HZ, **(
+            {'publish_clock': True, 'real_time_factor': PAUSED_RTF} if free_clock else {}),
+            robots=str([f'r{k}' for k in range(n)])), ns, probes[0], probes[n - 1])
     return sims
 
 
 def measure_sim(run, graph, robots, sim, free_clock):
-    """
-    Measure a started simulator idle, then commanded by a load process; stop both.
-
-    free_clock: at FREE_CLOCK_RTF, idle with no participant, so as fast as it can; commanded,
-    with the load taking part in its lockstep, commanding every robot at every step.
-    """
+    """Measure a started simulator idle, then commanded by a load process; stop both."""
     (sim, namespace, first, last), sizes, load = sim, run.sizes, None
     client = AsyncParameterClient(first, namespace + '/unicycle_sim')
 
@@ -124,7 +110,8 @@ def measure_sim(run, graph, robots, sim, free_clock):
             # A participant answers once it has handled a step; at full speed the first steps
             # come faster than a commander of 256 robots handles one.  So: join at real time.
             real_time_factor(1.0)
-        load = start_load(run, 'lockstep' if free_clock else 'wall', robots, namespace)
+        load = run.start(sys.executable, '-c', LOAD, 'lockstep' if free_clock else 'wall',
+                         str(robots), namespace)
         if not graph.spin_until(lambda: harness.is_moving(last.odom) and (
                 not free_clock or status(load)['joined']), 30.0, poll=0.005):
             raise RuntimeError(f'the load did not drive {namespace}:\n{run.stop(load)}')
@@ -141,10 +128,6 @@ def measure_sim(run, graph, robots, sim, free_clock):
     return {'idle': idle, 'commands': commands}
 
 
-def start_load(run, *args):
-    return run.start(sys.executable, '-c', LOAD, *map(str, args))
-
-
 def status(load):
     lines = [line.split() for line in load.output().splitlines() if line.startswith('load ')]
     _, ticks, heard, joined = lines[-1] if lines else ('load', 0, 0, 0)
@@ -155,13 +138,10 @@ def fleet_windows(run):
     """
     Measure the simulators of rows 13-16 and rclpy's cost per Odometry message.
 
-    The simulators on wall time start at once, so that their discoveries overlap, and are
-    measured largest first, each stopped once measured (the others idle meanwhile); the clock
-    owners one at a time.  rclpy's cost with nobody listening comes before any process starts
-    (no discovery traffic); with one subscriber (a load process) at the end.
+    rclpy's cost with nobody listening comes before any process starts (no discovery traffic).
     """
     s = run.sizes
-    with session() as graph:
+    with harness.SimGraph(executor_class=EventsExecutor) as graph:
         pub = graph.probe('bench_fleet', use_sim_time=False, listen_only=True,
                           enable_rosout=False).create_publisher(Odometry, 'bench_odom', 10)
         alone = publish_cost(pub, s.fleet_messages)
@@ -170,7 +150,7 @@ def fleet_windows(run):
             wall[n] = measure_sim(run, graph, n, wall[n], False)
         free = {n: measure_sim(run, graph, n, start_sims(run, graph, [n], True)[n], True)
                 for n in s.fleet_free_robots}
-        load = start_load(run, 'listen', 0, '/')
+        load = run.start(sys.executable, '-c', LOAD, 'listen', '0', '/')
         if not graph.spin_until(lambda: pub.get_subscription_count(), 30.0):
             raise RuntimeError(f'the load did not subscribe to bench_odom:\n{run.stop(load)}')
         heard = status(load)['heard']
@@ -184,7 +164,7 @@ def fleet_windows(run):
 
 
 class Commander(Node):
-    """A Twist to robots r0 ... r<robots-1> in namespace on every tick of a 50 Hz timer."""
+    """Twists to robots r0.. in namespace at 50 Hz, alternating two values."""
 
     def __init__(self, robots, namespace, sim_time, counts):
         super().__init__('bench_fleet_commander', namespace=namespace, enable_rosout=False,
@@ -196,8 +176,7 @@ class Commander(Node):
         self.participant = take_part(self) if sim_time else None
 
     def send(self):
-        # As a motion waits for its robot: in lockstep, a command sent before the simulator
-        # subscribed (or before the first /clock) would be waited for and never come.
+        # As a motion waits for its robot: in lockstep, a command sent early would be lost.
         self.matched = self.matched or (self.get_clock().now().nanoseconds > 0 and all(
             pub.get_subscription_count() for pub in self.pubs))
         if self.matched:
@@ -208,17 +187,13 @@ class Commander(Node):
 
 def load(mode, robots, namespace):
     """
-    Load a simulator from a process of its own (so that the simulator's CPU is its own).
+    Load a simulator from a process of its own, so that the simulator's CPU is its own.
 
-    ``wall``: a Twist to robots namespace/r0 ... r<robots-1> at 50 Hz on wall time;
-    ``lockstep``: the same on simulated time, in the lockstep of the simulator owning /clock,
-    which then applies every command at every step; ``listen``: only subscribed to bench_odom.
-    The commands alternate between two values, so the simulator integrates piecewise at each.
-    Prints ``load <command rounds> <odometry heard> <1 when in a lockstep>`` every 10 ms.
+    ``wall``: Twists to namespace/r0.. at 50 Hz; ``lockstep``: the same on sim time, in the
+    simulator's lockstep; ``listen``: bench_odom's subscriber.  Prints its counts every 10 ms.
     """
     rclpy.init()
-    counts, executor = {'ticks': 0, 'heard': 0}, EventsExecutor()
-    node = Node('bench_load', enable_rosout=False)
+    counts, executor, node = {'ticks': 0, 'heard': 0}, EventsExecutor(), Node('bench_load')
     node.create_subscription(Odometry, 'bench_odom', lambda _: counts.update(
         heard=counts['heard'] + 1), 10)
     commander = Commander(int(robots), namespace, mode == 'lockstep', counts) \
@@ -236,21 +211,12 @@ def load(mode, robots, namespace):
         pass
 
 
-def cores(w):
-    """Return the CPU per simulated second at 50 Hz [cores], from a wall-time window."""
-    return w['cpu_s'] / w['steps'] * RATE_HZ if w['steps'] else math.nan
-
-
-def fmt3(value):
-    return f'{value:.3f}'
-
-
 def in_real_time(run):
-    """Return the windows on wall time, and from them idle and commanded cores, steps/s."""
+    """Return the windows on wall time, CPU per sim s (cores) idle and commanded, steps/s."""
     windows = run.once(fleet_windows)[0]
-    return windows, *({n: f(w) for n, w in windows.items()} for f in (
-        lambda w: cores(w['idle']), lambda w: cores(w['commands']),
-        lambda w: w['commands']['steps'] / w['commands']['wall_s']))
+    return windows, *({n: w[key]['cpu_s'] / w[key]['steps'] * RATE_HZ if w[key]['steps'] else
+                       math.nan for n, w in windows.items()} for key in ('idle', 'commands')), {
+        n: w['commands']['steps'] / w['commands']['wall_s'] for n, w in windows.items()}
 
 
 @row('fleet')
@@ -338,7 +304,7 @@ def fleet_per_robot(run):
 @row('fleet')
 def fleet_motions(run):
     n = run.sizes.fleet_motion_robots
-    reused = run.measured(motions_run, n, False)
+    reused = ('motions_run', (n, False), ()) in run.measurements  # by row 12
     one, many = run.once(motions_run, n, True), run.once(motions_run, n, False)
 
     def text(m, processes):

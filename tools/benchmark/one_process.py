@@ -12,19 +12,14 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""
-Rows 1-6 (and row 11's runs): the motion nodes and the originals in one process, in lockstep.
-
-Stepped by the harness (``lockstep_graph``), so the results are exact whatever the machine's
-load; the originals are played on the kinematic model first, and their ticks then replayed to
-the simulator by a harness Probe.
-"""
+"""Rows 1-6 (and row 11's runs): the motions and the originals in one process, in lockstep."""
 
 from contextlib import contextmanager
 from dataclasses import astuple
 import math
 import os
 import time
+from unittest import mock
 
 from benchmark import core
 from benchmark import originals
@@ -47,24 +42,14 @@ ROTATION = RotationRequest(60.0, 90.0, True)  # deg/s, deg, clockwise
 GOAL = -math.radians(ROTATION.angle_deg)
 MOTIONS = {'rotate': RotateRobot, 'circle': CircleBackAndForth, 'out_and_back': TimedOutAndBack}
 EXECUTORS = {'events': EventsExecutor, 'single_threaded': SingleThreadedExecutor}
-DISCOVERY = 'ROS_AUTOMATIC_DISCOVERY_RANGE'
 
 
 @contextmanager
 def lockstep_graph(executor_class=EventsExecutor, namespace=None, **sim_params):
-    """
-    Yield a SimGraph holding a simulator it steps, on a context of its own, discovery off.
-
-    The nodes of one context match without discovery, and no other run on this machine can add
-    to the graph's message count.  No probe on odometry: pose() reads the simulated robot.
-    """
-    context, saved = Context(), os.environ.get(DISCOVERY)
-    os.environ[DISCOVERY] = 'OFF'
-    try:
+    """Yield a SimGraph stepping a simulator; discovery off: no other run adds messages."""
+    context = Context()
+    with mock.patch.dict(os.environ, {'ROS_AUTOMATIC_DISCOVERY_RANGE': 'OFF'}):
         rclpy.init(context=context)
-    finally:
-        os.environ.pop(DISCOVERY)
-        os.environ.update({DISCOVERY: saved} if saved else {})
     graph = SimGraph(context, executor_class)
     try:
         params = {'publish_clock': True, 'lockstep': False, **sim_params}
@@ -104,10 +89,6 @@ def play(graph, script, rate_hz, probe=None):
                                                      1.0 / rate_hz))
 
 
-def step_to(graph, t_ns):
-    graph.step((t_ns - graph.now_ns) // graph.step_ns)
-
-
 def rotations(run, mode):
     """Return the yaw errors [deg] of rotate_robot in mode (or the original) per start."""
     errors = []
@@ -118,14 +99,15 @@ def rotations(run, mode):
         step = 0.05 if probe else 0.02
         for start_ns in originals.start_times(run.sizes.starts, step, 1.0):
             if probe:
-                step_to(graph, start_ns - core.NS // 10)
+                graph.step((start_ns - core.NS // 10 - graph.now_ns) // graph.step_ns)
                 start, end, _, _ = play(graph, lambda robot: originals.original_rotate(
                     robot, *astuple(ROTATION)), 10.0, probe)
             else:
                 node = graph.node(RotateRobot, mode=mode)
                 graph.step()  # the new node hears the clock
                 # Its first tick primes the connection with a zero Twist, the second starts.
-                step_to(graph, start_ns - 2 * round(node.period * core.NS))
+                graph.step((start_ns - 2 * round(node.period * core.NS) - graph.now_ns)
+                           // graph.step_ns)
                 start, end, _, _ = drive(graph, node, 5, lambda: node.start(ROTATION))
                 if node.start_ns != start_ns:
                     raise RuntimeError(f'rotate_robot ({mode}) started at {node.start_ns} ns')
@@ -134,8 +116,7 @@ def rotations(run, mode):
     return errors
 
 
-def original(run, script, rate_hz):
-    """Play an original script once against a simulator stepping at its rate; drive()'s."""
+def original(run, script, rate_hz):  # once, the simulator stepping at the script's rate
     with lockstep_graph(rate_hz=rate_hz) as graph:
         graph.step()
         return play(graph, script, rate_hz)

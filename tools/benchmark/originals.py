@@ -32,10 +32,9 @@ ORIGINAL_PI = 3.14
 
 def original_rotate(robot, speed_deg, angle_deg, clockwise):
     """
-    Rotate as The Construct's ``rotate_robot.py`` did, at 10 Hz, topic and final stop fixed.
+    Rotate as The Construct's ``rotate_robot.py`` did at 10 Hz (topic and final stop fixed).
 
-    Degrees to radians with 3.14/180; t0 = ``rospy.Time.now().secs``; every tick publishes the
-    turn and stops once speed x (whole seconds of now - t0) reaches the goal.
+    3.14/180; t0 = ``rospy.Time.now().secs``; stop once speed x (now.secs - t0) reaches goal.
     """
     angular_speed = speed_deg * ORIGINAL_PI / 180.0
     t0 = robot.now_ns() // NS
@@ -70,10 +69,10 @@ def rbx1_ticks(rate=50, linear_speed=0.2, goal_distance=1.0, angular_speed=1.0,
 
 def move_rob(robot, cycles, rate=10, linear_speed=0.5, angular_speed=0.5, half_period=15.0):
     """
-    Drive ``move_rob.py``'s circle back and forth at 10 Hz: every tick publishes the Twist.
+    Drive ``move_rob.py``'s circle back and forth at 10 Hz, a Twist every tick.
 
-    A flip is published twice, a tick apart: first a Twist with only the (new) angular part,
-    then both parts.  The original never stops; the stop at the end is there to measure it.
+    A flip is published twice, a tick apart, the first Twist only angular; the final stop is
+    there to measure (the original never stops).
     """
     half_ticks = round(half_period * rate)
     for tick in range(2 * cycles * half_ticks):
@@ -99,12 +98,7 @@ class ModelRobot:
         self.command = linear, angular
 
     def play(self, script, rate_hz):
-        """
-        Run script to its end; return the final (x, y, yaw) and the seconds it took.
-
-        ``ticks`` then holds the command in force at each tick; a script's final stop, the
-        tick after, is the zero Twist harness.Probe.play ends with.
-        """
+        """Run script to its end; return the final pose and seconds; ticks: each tick's command."""
         for _ in script:
             self.ticks.append(self.command)
             self.model.advance(1.0 / rate_hz)
@@ -131,12 +125,7 @@ def closure(start, end):
 
 
 def integration_errors(laps=100, linear=0.5, angular=0.5, dt=0.02):
-    """
-    Drive laps of a circle with the exact arc and with forward Euler at step dt.
-
-    Returns both integrators' position errors [m] from the closed form, the largest and at the
-    end (exactly `laps` laps: a last shorter step).
-    """
+    """Return the exact arc's and forward Euler's position errors [m] on a circle: max, end."""
     end_t = laps * 2.0 * math.pi / angular
     steps = int(end_t / dt)
     dts = np.append(np.full(steps, dt), end_t - steps * dt)

@@ -50,18 +50,12 @@ TIMEOUT_S = 20.0  # wall s (and 4 per robot) for the motion processes of rows 12
 DONE = re.compile(r'Done in ([0-9.]+) s \(([0-9.]+) s wall\).* error ([0-9.]+) mm, ([0-9.]+) deg')
 
 
-def session():
-    """Return a harness.SimGraph on the run's domain, for talking to processes."""
-    return harness.SimGraph(executor_class=EventsExecutor)
-
-
 def watch_motion(graph, start, stop, motion, rtf, **sim_params):
     """
     Run a motion (of MOTIONS) against a fresh unicycle_sim owning the clock at rtf; watch it.
 
-    start(executable, **params) starts a process, stop(process) stops it, returns its output.
-    Returns the exit code, the motion's log and the odometry heard (and when); then the goal,
-    the resting pose, its error, and the sim and wall s of the movement, from rest to rest.
+    Returns the exit code, log and odometry heard (and when); then the goal, the resting pose,
+    its error, and the sim and wall s of the movement, from rest to rest.
     """
     _, executable, params, sim_seconds, turn_deg = MOTIONS[motion]
     probe, processes, code = graph.probe('motion_observer', listen_only=True), [], 'no odometry'
@@ -95,7 +89,7 @@ def watch_motion(graph, start, stop, motion, rtf, **sim_params):
 
 
 def motion_processes(run):
-    with session() as graph:
+    with harness.SimGraph(executor_class=EventsExecutor) as graph:
         return {motion: [watch_motion(graph, run.start, run.stop, motion, run.rtf)
                          for _ in range(run.sizes.process_runs)]
                 for motion in run.sizes.process_motions}
@@ -131,8 +125,8 @@ def rtf_processes(run):
 
 
 def sim_process(run):
-    """Measure a unicycle_sim process at 50 Hz on wall time: CPU idle, commanded; latency."""
-    with session() as graph:
+    """Measure a unicycle_sim at 50 Hz on wall time: CPU idle, under commands; latency."""
+    with harness.SimGraph(executor_class=EventsExecutor) as graph:
         probe, sim = graph.probe('bench_observer', use_sim_time=False), run.start(
             'unicycle_sim', rate_hz=50.0)
 
@@ -203,28 +197,18 @@ def cpu_commands(run):
         'values) from this process.', data={'idle_percent': idle, 'commands_percent': busy})
 
 
-def yaml_list(names):
-    return '[' + ', '.join(names) + ']'
-
-
 def motions_run(run, robots, one_simulator):
     """
-    Run `robots` odom_out_and_back motions on sim time, then the simulator owning the clock.
+    Run `robots` odom_out_and_back motions on sim time; start the clock owner once connected.
 
-    one_simulator: one motion_fleet and one unicycle_sim with ``robots``.  Otherwise a
-    unicycle_sim + motion pair per robot (/robotK), robot 0's simulator owning the clock, all
-    other nodes in its lockstep, commands TwistStamped (stamped:=true) so that a simulator
-    applies each at the step it was sent for even when it overtakes that /clock.  The clock
-    owner starts once every cmd_vel is connected (2N Python processes on a small machine can
-    be off the CPU for seconds).  Returns the slowest motion's sim s / wall s and the worst
-    closure (from their closing lines), how many failed, and the wall s from the owner's start
-    to the last exit.
+    one_simulator: one motion_fleet and one unicycle_sim; otherwise a pair per robot, stamped
+    (a command overtaking its /clock is still applied at its step).  Sums up closing lines.
     """
     names = [f'robot{k}' for k in range(robots)]
     motion = {'use_sim_time': True, 'start_timeout': 120.0, **run.sizes.scaling_motion}
     if one_simulator:
-        owner, followers = {'robots': yaml_list(names)}, []
-        motions = [run.start('motion_fleet', robots=yaml_list(names),
+        owner, followers = {'robots': str(names)}, []
+        motions = [run.start('motion_fleet', robots=str(names),
                              motions='[odom_out_and_back]', **motion)]
     else:
         owner = {'namespace': '/robot0', 'stamped': True}
@@ -232,7 +216,7 @@ def motions_run(run, robots, one_simulator):
                                stamped=True) for name in names[1:]]
         motions = [run.start('odom_out_and_back', namespace=f'/{name}', stamped=True, **motion)
                    for name in names]
-    with session() as graph:
+    with harness.SimGraph(executor_class=EventsExecutor) as graph:
         probe = graph.probe('bench_probe', listen_only=True)
         try:
             if not graph.spin_until(lambda: all(
@@ -263,8 +247,7 @@ def drive_text(run):
         f'{k} {v:g}' for k, v in run.sizes.scaling_motion.items()) + ')'
 
 
-def scaling(run):
-    """Return rows 11 and 12's runs and texts."""
+def scaling(run):  # rows 11 and 12's runs and texts
     one = {n: run.once(one_process, n) for n in run.sizes.robots}
     many = {n: run.once(motions_run, n, False) for n in run.sizes.robots_processes}
     return one, many, core.by_n(one), ', '.join(
@@ -277,10 +260,8 @@ def scaling_one_process(run):
     one, _, one_text, many_text = scaling(run)
     return Row(
         'N robots in one process, real-time factor', one_text, 'as 2N processes: ' + many_text,
-        f'Simulator + {drive_text(run)} pairs in namespaces /robotK, all nodes in one '
-        "EventsExecutor; robot 0's simulator owns /clock and is stepped in lockstep, the "
-        f'others run on sim time. Over {run.sizes.scaling_window_s:g} s of simulated time, '
-        'exact.', data={'rtf': one})
+        f'Simulator + {drive_text(run)} pairs (/robotK) in one EventsExecutor, stepped in '
+        f'lockstep over {run.sizes.scaling_window_s:g} s of simulated time.', data={'rtf': one})
 
 
 @row('scaling')
@@ -289,12 +270,11 @@ def scaling_processes(run):
     return Row(
         'N robots as 2N processes, real-time factor (worst closure)', many_text,
         'one process: ' + one_text,
-        f"unicycle_sim and {drive_text(run)} per robot (-r __ns:=/robotK). Robot 0's "
-        f'simulator owns /clock (real_time_factor {run.rtf:g}, a bound), starting once all '
-        'others are connected; they all take part in its lockstep, so it waits for 2N-1 '
-        "answers at every step. Commands are TwistStamped. Factor: the slowest motion's sim "
-        "s / wall s; error: the largest closure error; both from the motions' closing lines "
-        f'(not done: none within {TIMEOUT_S:g} s + 4 s per robot of wall time).',
+        f"unicycle_sim and {drive_text(run)} per robot (/robotK), robot 0's simulator owning "
+        f'/clock (real_time_factor {run.rtf:g}) and waiting for the 2N-1 others each step; '
+        "TwistStamped commands. Factor: the slowest motion's sim s / wall s; error: the "
+        "largest; from the motions' closing lines (not done: none within "
+        f'{TIMEOUT_S:g} s + 4 s per robot).',
         data={'rtf': {n: m['rtf'] for n, m in many.items()},
               'worst_error_mm': {n: m['worst_mm'] for n, m in many.items()},
               'not_done': {n: m['failed'] for n, m in many.items()}, 'runs': many})
