@@ -39,16 +39,15 @@ from rclpy.logging import LoggingSeverity
 from sim_diffdrive.harness import DOMAIN_VARIABLE
 from sim_diffdrive.harness import isolated_domain_id
 
-COLUMNS = {'#': 2, 'measure': 34, 'this project': 38, 'reference': 38, 'target': 12,
-           'result': 6}  # header: the width a cell wraps at
+WRAP_AT = {'#': 2, 'measure': 34, 'this project': 38, 'reference': 38, 'target': 12, 'result': 6}
 
 
 def print_table(rows):
     """Print the rows as a table with wrapped cells, then their numbered notes."""
-    table = [list(COLUMNS)] + [[str(i), r['measure'], r['project'], r['reference'], r['target'],
+    table = [list(WRAP_AT)] + [[str(i), r['measure'], r['project'], r['reference'], r['target'],
                                 r['result']] for i, r in enumerate(rows.values(), 1)]
     widths = [min(max(len(cells[i]) for cells in table), w) for i, w in
-              enumerate(COLUMNS.values())]
+              enumerate(WRAP_AT.values())]
     for cells in table:
         wrapped = [textwrap.wrap(cell, width, break_long_words=False, break_on_hyphens=False)
                    or [''] for cell, width in zip(cells, widths)]

@@ -60,7 +60,8 @@ def row(group):
 
 
 @dataclass
-class Row:  # the table's cells (met: None without a target), a note, the raw numbers
+class Row:
+    """The table's cells of a row (met: None without a target), its note, its raw numbers."""
 
     measure: str
     project: str
@@ -72,11 +73,12 @@ class Row:  # the table's cells (met: None without a target), a note, the raw nu
 
     def report(self):
         met = None if self.met is None else bool(self.met)
-        return {**asdict(self), 'met': met, 'result': {None: '-', True: 'met', False: 'missed'}[
-            met]}
+        result = {None: '-', True: 'met', False: 'missed'}[met]
+        return {**asdict(self), 'met': met, 'result': result}
 
 
-class Run:  # one run: its sizes, the processes it started, what its rows measured
+class Run:
+    """One run: its sizes, the processes it started, what its rows have measured."""
 
     def __init__(self, quick=False, rtf=100.0):
         self.sizes = SimpleNamespace(quick=quick, **{k: v[quick] for k, v in SIZES.items()})

@@ -214,9 +214,12 @@ def load(mode, robots, namespace):
 def in_real_time(run):
     """Return the windows on wall time, CPU per sim s (cores) idle and commanded, steps/s."""
     windows = run.once(fleet_windows)[0]
-    return windows, *({n: w[key]['cpu_s'] / w[key]['steps'] * RATE_HZ if w[key]['steps'] else
-                       math.nan for n, w in windows.items()} for key in ('idle', 'commands')), {
-        n: w['commands']['steps'] / w['commands']['wall_s'] for n, w in windows.items()}
+
+    def cores(w):  # CPU s per step, times the steps of a simulated second
+        return w['cpu_s'] / w['steps'] * RATE_HZ if w['steps'] else math.nan
+    return (windows, {n: cores(w['idle']) for n, w in windows.items()},
+            {n: cores(w['commands']) for n, w in windows.items()},
+            {n: w['commands']['steps'] / w['commands']['wall_s'] for n, w in windows.items()})
 
 
 @row('fleet')
