@@ -27,13 +27,13 @@ import math
 from ament_index_python.packages import get_package_share_directory
 from ament_index_python.resources import get_resource
 from geometry_msgs.msg import TransformStamped
-from nav_msgs.msg import Odometry
 import numpy as np
 import pytest
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.serialization import deserialize_message
 from rclpy.serialization import serialize_message
+from sim_diffdrive.cdr import TransformLayout
 from sim_diffdrive.harness import pose_of
 from sim_diffdrive.harness import ros_params
 from sim_diffdrive.harness import start
@@ -41,7 +41,6 @@ from sim_diffdrive.harness import stop
 from sim_diffdrive.parameters import Spec
 from sim_diffdrive.sim.node import UnicycleSim
 from sim_diffdrive.sim.odom_tf import namespaced_frame
-from sim_diffdrive.sim.odom_tf import OdomTransform
 from sim_diffdrive.sim.odom_tf import resolve_frame
 from sim_diffdrive.sim.odom_tf import TF_QOS
 from sim_diffdrive.sim.odom_tf import TF_TOPIC
@@ -53,30 +52,27 @@ from tf2_msgs.msg import TFMessage
     [('a/odom', 'a/base_footprint'), ('robot12/odom', 'robot12/base_footprint'),
      ('o', 'b'), ('team_blue/robot7/odom', 'x')],  # every string length modulo 8
 ])
-def test_the_tf_bytes_written_with_numpy_are_what_rclpy_serializes(ros_context, frames):
-    odoms = []
-    for frame, child in frames:
-        odom = Odometry()
-        odom.header.frame_id, odom.child_frame_id = frame, child
-        odoms.append(odom)
-    node = Node('tf_bytes', context=ros_context)
-    try:
-        tf = OdomTransform(node, odoms)
-        count = len(frames)
-        yaw = np.linspace(-3.1, 3.1, count)
-        values = (12345, 678901234, np.linspace(-1e3, 7.5, count), np.linspace(2.0, -0.1, count),
-                  np.sin(yaw / 2), np.cos(yaw / 2))
-        raw = tf._layout.serialize(*values)
-        # (rclpy leaves whatever was in memory in the padding, so compare all but that.)
-        expected = serialize_message(tf.message(*values))
-        assert len(raw) == len(expected)
-        decoded = deserialize_message(raw, TFMessage)
-        assert decoded == deserialize_message(expected, TFMessage)
-        assert [(t.header.frame_id, t.child_frame_id) for t in decoded.transforms] == frames
-        assert decoded.transforms[-1].transform.translation.x == values[2][-1]
-        assert decoded.transforms[0].header.stamp.nanosec == 678901234
-    finally:
-        node.destroy_node()
+def test_the_tf_bytes_written_with_numpy_are_what_rclpy_serializes(frames):
+    count = len(frames)
+    yaw = np.linspace(-3.1, 3.1, count)
+    values = (12345, 678901234, np.linspace(-1e3, 7.5, count), np.linspace(2.0, -0.1, count),
+              np.sin(yaw / 2), np.cos(yaw / 2))
+    raw = TransformLayout(frames).serialize(*values)
+    expected = TFMessage()
+    for i, (frame, child) in enumerate(frames):
+        transform = TransformStamped()
+        transform.header.stamp.sec, transform.header.stamp.nanosec = values[:2]
+        transform.header.frame_id, transform.child_frame_id = frame, child
+        t, r = transform.transform.translation, transform.transform.rotation
+        t.x, t.y, r.z, r.w = (float(v[i]) for v in values[2:])
+        expected.transforms.append(transform)
+    # (rclpy leaves whatever was in memory in the padding, so compare all but that.)
+    assert len(raw) == len(serialize_message(expected))
+    decoded = deserialize_message(raw, TFMessage)
+    assert decoded == expected
+    assert [(t.header.frame_id, t.child_frame_id) for t in decoded.transforms] == frames
+    assert decoded.transforms[-1].transform.translation.x == values[2][-1]
+    assert decoded.transforms[0].header.stamp.nanosec == 678901234
 
 
 class TfListener(Node):

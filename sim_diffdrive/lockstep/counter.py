@@ -25,8 +25,13 @@ does not change.  ``MessageCounter.of(node, ...)`` is the only place that wraps:
 one counter however many users it has, each adding itself to ``listeners``.
 """
 
+import struct
+
 from rclpy.clock import ClockType
+from rclpy.serialization import deserialize_message
 from rosgraph_msgs.msg import Clock as ClockMsg
+from sim_diffdrive.cdr import header_stamp_ns
+from sim_diffdrive.cdr import UnsupportedEncoding
 from sim_diffdrive.lockstep.handshake import ignored_topics
 
 _NS = 1_000_000_000
@@ -85,7 +90,8 @@ class MessageCounter:
                     sub.callback = self._clock_callback(sub.callback)
                 elif topic not in self._ignored:
                     self.heard.setdefault(topic, 0)
-                    sub.callback = self._heard_callback(sub.callback, topic)
+                    sub.callback = self._heard_callback(sub.callback, topic,
+                                                        _stamp_reader(sub.msg_type))
                 sub._lockstep_counter = self
         for timer in node.timers if self._timers else ():
             if not getattr(timer, '_lockstep_counter', None):
@@ -95,7 +101,8 @@ class MessageCounter:
             if not getattr(pub, '_lockstep_counter', None):
                 if pub.topic_name not in self._ignored:
                     self.sent.setdefault(pub.topic_name, 0)
-                    pub.publish = self._counted_publish(pub.publish, pub.topic_name)
+                    pub.publish = self._counted_publish(pub.publish, pub.topic_name,
+                                                        _stamp_reader(pub.msg_type))
                 pub._lockstep_counter = self
 
     def _after(self):
@@ -112,13 +119,12 @@ class MessageCounter:
             self._after()
         return counted
 
-    def _heard_callback(self, callback, topic):
+    def _heard_callback(self, callback, topic, stamp_ns):
         def counted(*args):
             self.heard[topic] += 1
             self.handled += 1
-            header = getattr(args[0], 'header', None)
-            if header is not None:
-                stamp = header.stamp.sec * _NS + header.stamp.nanosec
+            if stamp_ns is not None:
+                stamp = stamp_ns(args[0])
                 if stamp > self.heard_stamp.get(topic, -1):
                     self.heard_stamp[topic] = stamp
             callback(*args)
@@ -148,13 +154,40 @@ class MessageCounter:
             self._after()
         return once_per_clock_time
 
-    def _counted_publish(self, publish, topic):
+    def _counted_publish(self, publish, topic, stamp_ns):
         def counted(msg):
             self.sent[topic] += 1
-            header = getattr(msg, 'header', None)
-            if header is not None:
-                stamp = header.stamp.sec * _NS + header.stamp.nanosec
+            if stamp_ns is not None:
+                stamp = stamp_ns(msg)
                 if stamp > self.sent_stamp.get(topic, -1):
                     self.sent_stamp[topic] = stamp
             publish(msg)
         return counted
+
+
+def _stamp_reader(msg_type):
+    """
+    Return how to read the header stamp [ns] of msg_type's messages, or None if they have none.
+
+    A message is stamped when its first field is a std_msgs/Header.  The function takes the
+    message as an object or as its CDR bytes (a raw subscription, a serialized publish), where
+    the stamp lies right after the encapsulation header; bytes that do not hold one give -1.
+    """
+    fields = iter(msg_type.get_fields_and_field_types().items())
+    if next(fields, None) != ('header', 'std_msgs/Header'):
+        return None
+
+    def stamp_ns(msg):
+        if isinstance(msg, bytes):
+            try:
+                return header_stamp_ns(msg)
+            except UnsupportedEncoding:
+                try:
+                    msg = deserialize_message(msg, msg_type)
+                except RuntimeError:
+                    return -1
+            except struct.error:
+                return -1
+        stamp = msg.header.stamp
+        return stamp.sec * _NS + stamp.nanosec
+    return stamp_ns

@@ -30,6 +30,8 @@ import re
 import numpy as np
 from rclpy.node import Node
 from rclpy.time import Time
+from sim_diffdrive.cdr import covariance
+from sim_diffdrive.cdr import OdometryLayout
 from sim_diffdrive.parameters import declare
 from sim_diffdrive.parameters import ParameterError
 from sim_diffdrive.parameters import Spec
@@ -37,7 +39,6 @@ from sim_diffdrive.runtime import run
 from sim_diffdrive.sim.clock import make_clock
 from sim_diffdrive.sim.fleet import Fleet
 from sim_diffdrive.sim.odom_tf import OdomTransform
-from sim_diffdrive.sim.robot import covariance
 from sim_diffdrive.sim.robot import Robot
 from sim_diffdrive.taps import open_taps
 from sim_diffdrive.taps import TAP_PARAMETERS
@@ -153,8 +154,8 @@ class UnicycleSim(Node):
         # Where else the simulator's traffic goes (an MCAP file, Foxglove): see taps/.
         self.taps = open_taps(self)
         self.robots = [Robot(self, i, name) for i, name in enumerate(names)]
-        self._tf = (OdomTransform(self, [robot.odom_msg for robot in self.robots])
-                    if p.publish_tf else None)
+        self._odometry = self._odometry_layout()
+        self._tf = OdomTransform(self, self._frames()) if p.publish_tf else None
         self._path_every = max(1, round(p.rate_hz / p.path_rate_hz))
         self._odom_count = 0
         self._check_every = max(1, round(p.rate_hz))
@@ -208,15 +209,13 @@ class UnicycleSim(Node):
             for robot in robots:
                 robot.model.set_limit(name, value)
         elif name in ('pose_covariance_diagonal', 'twist_covariance_diagonal'):
-            for robot in robots:
-                odom = robot.odom_msg
-                (odom.pose if name.startswith('pose') else odom.twist).covariance = (
-                    covariance(value))
+            self._odometry = self._odometry_layout()
         elif name in ('odom_frame_id', 'base_frame_id'):
             for robot in robots:
                 robot.set_frame(name, value)
+            self._odometry = self._odometry_layout()
             if self._tf is not None:
-                self._tf.set_frames()
+                self._tf.set_frames(self._frames())
         elif name == 'real_time_factor':
             self.clock.set_real_time_factor(value)
         elif name == 'path_length':
@@ -239,29 +238,45 @@ class UnicycleSim(Node):
 
     # -- odometry ---------------------------------------------------------------------------
 
+    def _frames(self):
+        return [robot.frames for robot in self.robots]
+
+    def _odometry_layout(self):
+        """Lay every robot's odometry bytes out for the current frames and covariances."""
+        p = self.params
+        return OdometryLayout(self._frames(), covariance(p.pose_covariance_diagonal),
+                              covariance(p.twist_covariance_diagonal))
+
     def publish_odom(self):
         """Publish every robot's odometry (and one /tf message with all of them)."""
         fleet = self.fleet
         stamp_ns = int(fleet.integrated_ns.max())
-        stamp = Time(nanoseconds=stamp_ns).to_msg()
+        sec, nanosec = divmod(stamp_ns, _NS)
         half = 0.5 * fleet.yaw
         qz, qw = np.sin(half), np.cos(half)  # quaternion_from_yaw, for every robot
-        for robot, *values in zip(self.robots, fleet.x.tolist(), fleet.y.tolist(), qz.tolist(),
-                                  qw.tolist(), fleet.linear.tolist(), fleet.angular.tolist()):
-            robot.publish_odom(stamp, stamp_ns, *values)
+        odometry = self._odometry.serialize(sec, nanosec, fleet.x, fleet.y, qz, qw,
+                                            fleet.linear, fleet.angular)
+        robots = self.robots
+        for robot, data in zip(robots, odometry):
+            robot.odom_pub.publish(data)
+        taps = self.taps
+        if taps:
+            for robot, data in zip(robots, odometry):
+                taps.write(robot.odom_pub.topic_name, data, stamp_ns)
         if self._tf is not None:
-            pose = (stamp.sec, stamp.nanosec, fleet.x, fleet.y, qz, qw)
-            self._tf.publish(*pose)
-            if self.taps:
-                self.taps.write(self._tf.publisher.topic_name, self._tf.message(*pose), stamp_ns)
-        if self.taps:
-            self.taps.step(stamp_ns, fleet)
+            data = self._tf.publish(sec, nanosec, fleet.x, fleet.y, qz, qw)
+            if taps:
+                taps.write(self._tf.publisher.topic_name, data, stamp_ns)
+        if taps:
+            taps.step(stamp_ns, fleet)
         if self._odom_count % self._path_every == 0:
-            for robot in self.robots:
-                robot.record_path(stamp_ns)
+            stamp = Time(nanoseconds=stamp_ns).to_msg()
+            for robot, *pose in zip(robots, fleet.x.tolist(), fleet.y.tolist(), qz.tolist(),
+                                    qw.tolist()):
+                robot.record_path(stamp, stamp_ns, *pose)
         if self._odom_count % self._check_every == 0:
             # A graph query per second, not per message: cmd_vel may arrive at kHz rates.
-            for robot in self.robots:
+            for robot in robots:
                 robot.check_publishers()
         self._odom_count += 1
 

@@ -21,11 +21,14 @@ turtlesim: ``cmd_vel`` in, ``odom`` and ``path`` out (under ``<name>/`` when the
 ``robots``), frames ``<name>/odom`` -> ``<name>/base_footprint``, and ``initialpose`` (RViz's
 "2D Pose Estimate") to set the robot down somewhere, at rest.  A command is checked here
 and handed to the fleet at the moment it arrives (the robot integrated up to then first), so
-it takes effect then, whatever the step.
+it takes effect then, whatever the step.  Commands arrive as their CDR bytes (a raw
+subscription) and are read where their fields lie (cdr.py); odometry leaves as bytes that the
+simulator writes for every robot at once (node.py, cdr.OdometryLayout).
 """
 
 from collections import deque
 import math
+import struct
 
 from geometry_msgs.msg import PoseStamped
 from geometry_msgs.msg import PoseWithCovarianceStamped
@@ -33,21 +36,17 @@ from geometry_msgs.msg import Twist
 from geometry_msgs.msg import TwistStamped
 from nav_msgs.msg import Odometry
 from nav_msgs.msg import Path
+from rclpy.serialization import deserialize_message
 from sim_diffdrive.angles import yaw_from_quaternion
+from sim_diffdrive.cdr import read_twist
+from sim_diffdrive.cdr import read_twist_stamped
+from sim_diffdrive.cdr import UnsupportedEncoding
 from sim_diffdrive.sim.odom_tf import namespaced_frame
 from sim_diffdrive.sim.odom_tf import resolve_frame
 
 _NS = 1_000_000_000
 # No ground robot commands more than this [m/s or rad/s]; larger values are refused as garbage.
 COMMAND_LIMIT = 1e4
-
-
-def covariance(diagonal):
-    """Return the flat, row-major 6x6 matrix with the given diagonal and zeros elsewhere."""
-    values = [0.0] * 36
-    for i, value in enumerate(diagonal):
-        values[7 * i] = value
-    return values
 
 
 class Robot:
@@ -68,26 +67,26 @@ class Robot:
         prefix = f'{name}/' if name else ''
         self.label = f'{name}: ' if name else ''
         p = sim.params
+        # Odometry goes out as bytes the simulator writes for every robot at once (node.py,
+        # cdr.OdometryLayout); commands come in as bytes, read where their fields lie.
         self.odom_pub = sim.create_publisher(Odometry, prefix + 'odom', 10)
         self.path_pub = sim.create_publisher(Path, prefix + 'path', 1)
-        if p.stamped:
-            sub = sim.create_subscription(TwistStamped, prefix + 'cmd_vel', self.on_stamped, 10)
-        else:
-            sub = sim.create_subscription(Twist, prefix + 'cmd_vel', self.on_twist, 10)
+        self.cmd_type = TwistStamped if p.stamped else Twist
+        sub = sim.create_subscription(self.cmd_type, prefix + 'cmd_vel',
+                                      self.on_stamped if p.stamped else self.on_twist, 10,
+                                      raw=True)
         self.cmd_topic = sub.topic_name
         sim.create_subscription(PoseWithCovarianceStamped, prefix + 'initialpose',
                                 self.on_initial_pose, 10)
         self.path = DrivenPath(p.path_length)
-        self.odom_msg = Odometry()
-        self.odom_msg.pose.covariance = covariance(p.pose_covariance_diagonal)
-        self.odom_msg.twist.covariance = covariance(p.twist_covariance_diagonal)
+        self.odom_frame = self.base_frame = ''
         for parameter in ('odom_frame_id', 'base_frame_id'):
             self.set_frame(parameter, getattr(p, parameter))
-        # What each publish fills, looked up once (the message is reused).
-        pose = self.odom_msg.pose.pose
-        twist = self.odom_msg.twist.twist
-        self._fill = (self.odom_msg.header, pose.position, pose.orientation, twist.linear,
-                      twist.angular)
+
+    @property
+    def frames(self):
+        """Return (odometry frame, base frame), as the odometry and /tf carry them."""
+        return self.odom_frame, self.base_frame
 
     def reset(self, x, y, yaw):
         """Put the robot back at (x, y, yaw), at rest; forget commands and the driven path."""
@@ -97,7 +96,7 @@ class Robot:
     def on_initial_pose(self, msg):
         """Set the robot down at the pose given (in its odometry frame), at rest."""
         sim = self.sim
-        frame = self.odom_msg.header.frame_id
+        frame = self.odom_frame
         given = msg.header.frame_id.lstrip('/')
         p = msg.pose.pose
         values = (p.position.x, p.position.y, p.orientation.x, p.orientation.y,
@@ -123,11 +122,15 @@ class Robot:
 
     # -- commands ---------------------------------------------------------------------------
 
-    def on_stamped(self, msg):
+    def on_stamped(self, data):
+        """Take a geometry_msgs/TwistStamped's bytes: refuse it when stale, else follow it."""
         sim = self.sim
         if sim.taps:
-            sim.taps.write(self.cmd_topic, msg, sim.now_ns())
-        stamp_ns = msg.header.stamp.sec * _NS + msg.header.stamp.nanosec
+            sim.taps.write(self.cmd_topic, data, sim.now_ns())
+        command = self._read(data, read_twist_stamped, _stamped_fields)
+        if command is None:
+            return
+        stamp_ns, linear, angular = command
         age_ns = sim.now_ns() - stamp_ns
         limit_ns = round(sim.params.max_command_age * _NS)
         if stamp_ns != 0 and limit_ns > 0 and abs(age_ns) > limit_ns:
@@ -137,14 +140,34 @@ class Robot:
                 f'than max_command_age {sim.params.max_command_age:g} s); keeping the last '
                 'command', throttle_duration_sec=1.0)
             return
-        self.on_twist(msg.twist, stamp_ns)
+        self.command(linear, angular, stamp_ns)
 
-    def on_twist(self, twist, stamp_ns=None):
+    def on_twist(self, data):
+        """Take a geometry_msgs/Twist's bytes and follow it."""
         sim = self.sim
-        if sim.taps and stamp_ns is None:
-            sim.taps.write(self.cmd_topic, twist, sim.now_ns())
-        linear = twist.linear.x
-        angular = twist.angular.z
+        if sim.taps:
+            sim.taps.write(self.cmd_topic, data, sim.now_ns())
+        command = self._read(data, read_twist, _twist_fields)
+        if command is not None:
+            self.command(*command)
+
+    def _read(self, data, read, fields):
+        """Return read(data); through rclpy in an encoding read() does not know; None if bad."""
+        try:
+            try:
+                return read(data)
+            except UnsupportedEncoding:
+                return fields(deserialize_message(data, self.cmd_type))
+        except (struct.error, RuntimeError, ValueError) as error:
+            self.sim.get_logger().warning(
+                f'{self.label}Refusing cmd_vel that does not decode as '
+                f'{self.cmd_type.__name__} ({error}); keeping the last command',
+                throttle_duration_sec=1.0)
+            return None
+
+    def command(self, linear, angular, stamp_ns=None):
+        """Follow (linear.x, angular.z) from now on (from stamp_ns on, when that is ahead)."""
+        sim = self.sim
         if not (abs(linear) <= COMMAND_LIMIT and abs(angular) <= COMMAND_LIMIT):
             # NaN fails both comparisons, so it is refused here too.
             sim.get_logger().warning(
@@ -182,41 +205,33 @@ class Robot:
         if self.name:
             frame = namespaced_frame(self.name, frame)
         if parameter == 'odom_frame_id':
-            self.odom_msg.header.frame_id = frame
+            self.odom_frame = frame
             self.path.clear()  # a path is in one frame
         else:
-            self.odom_msg.child_frame_id = frame
+            self.base_frame = frame
 
-    def publish_odom(self, stamp, stamp_ns, x, y, qz, qw, linear, angular):
-        """Fill the reused odometry message and publish it; return it."""
-        msg = self.odom_msg
-        header, position, orientation, linear_velocity, angular_velocity = self._fill
-        header.stamp = stamp
-        position.x = x
-        position.y = y
-        orientation.z = qz
-        orientation.w = qw
-        linear_velocity.x = linear
-        angular_velocity.z = angular
-        self.odom_pub.publish(msg)
-        if self.sim.taps:
-            self.sim.taps.write(self.odom_pub.topic_name, msg, stamp_ns)
-        return msg
-
-    def record_path(self, stamp_ns):
+    def record_path(self, stamp, stamp_ns, x, y, qz, qw):
         """Add the pose just published to the driven path; publish the path if anyone looks."""
-        odom = self.odom_msg
-        header, position, orientation, _, _ = self._fill
-        self.path.append((header.stamp, position.x, position.y, orientation.z, orientation.w))
+        self.path.append((stamp, x, y, qz, qw))
         taps = self.sim.taps
         if self.path_pub.get_subscription_count() == 0 and not taps.wants_path:
             return  # converting a long path to a message is the costliest thing here
         path = Path()
-        path.header = odom.header
-        path.poses = self.path.messages(header.frame_id)
+        path.header.stamp = stamp
+        path.header.frame_id = self.odom_frame
+        path.poses = self.path.messages(self.odom_frame)
         self.path_pub.publish(path)
         if taps:
             taps.write(self.path_pub.topic_name, path, stamp_ns)
+
+
+def _twist_fields(msg):
+    return msg.linear.x, msg.angular.z
+
+
+def _stamped_fields(msg):
+    stamp = msg.header.stamp
+    return stamp.sec * _NS + stamp.nanosec, msg.twist.linear.x, msg.twist.angular.z
 
 
 class DrivenPath:

@@ -18,7 +18,9 @@ Where else the simulator's traffic goes: an MCAP file, Foxglove, a browser (view
 A tap has a ``name``, ``wants_path`` (whether the simulator should build the path message for
 it even when nobody subscribes on DDS), ``write(topic, msg, stamp_ns)`` — called with every
 command the simulator hears and every odometry, /tf, /clock and path message it publishes,
-before the message is reused — ``close()``, and optionally ``step(stamp_ns, fleet)``, called
+as a message or as its CDR bytes (commands, odometry and /tf: the bytes that crossed DDS,
+of the type msg_definitions.message_class finds) — ``close()``, and optionally
+``step(stamp_ns, fleet)``, called
 once per odometry publish with the whole fleet (sim/fleet.py: numpy arrays ``x``, ``y``,
 ``yaw``, ``linear``, ``angular``, ``target_linear``, ``target_angular`` and the list
 ``names``), for a tap that draws every robot at once.  Each needs an optional package (mcap,

@@ -15,13 +15,13 @@
 """
 The simulator's run, live in Foxglove: a WebSocket server (foxglove-sdk) fed by the taps.
 
-Every message the simulator hands to its taps goes out on its ROS topic as it is on DDS: CDR
-bytes with the ``ros2msg`` schema rosbag2 would write (msg_definitions.py; odom, path, cmd_vel,
-/tf, /clock), so Foxglove decodes and shows them as it would a ROS bag.  Two Foxglove
-messages make the robot visible in the 3D panel: ``/foxglove/robot``, a SceneUpdate with a
-box and an arrow of about the robot's size locked to the base frame, and, only when the
-simulator does not publish /tf (publish_tf false), ``/foxglove/odom_transform``, the
-odometry as a FrameTransforms.
+Every message the simulator hands to its taps (an object or, mostly, its CDR bytes already)
+goes out on its ROS topic as it is on DDS: CDR bytes with the ``ros2msg`` schema rosbag2
+would write (msg_definitions.py; odom, path, cmd_vel, /tf, /clock), so Foxglove decodes and
+shows them as it would a ROS bag.  Two Foxglove messages make the robot visible in the 3D
+panel: ``/foxglove/robot``, a SceneUpdate with a box and an arrow of about the robot's size
+locked to the base frame, and, only when the simulator does not publish /tf (publish_tf
+false), ``/foxglove/odom_transform``, the odometry as a FrameTransforms.
 
 The server listens on 127.0.0.1: Foxglove (desktop, or the web app in a browser) runs on the
 user's machine and connects to ws://localhost:PORT; the server has no authentication, so it
@@ -38,6 +38,8 @@ import time
 from nav_msgs.msg import Odometry
 from nav_msgs.msg import Path
 from rclpy.serialization import serialize_message
+from sim_diffdrive.cdr import read_odometry
+from sim_diffdrive.taps.msg_definitions import message_class
 from sim_diffdrive.taps.msg_definitions import message_definition
 from sim_diffdrive.taps.msg_definitions import type_name
 
@@ -82,6 +84,7 @@ class FoxgloveLive:
         self.port = self._server.port
         self.url = f"ws://{'localhost' if host == DEFAULT_HOST else host}:{self.port}"
         self._channels = {}  # ROS topic -> Channel carrying CDR
+        self._types = {}  # ROS topic -> message class of the bytes given on it
         self._scene = channels.SceneUpdateChannel(SCENE_TOPIC, context=self._context)
         self._transforms = None
         if not node.params.publish_tf:
@@ -92,23 +95,25 @@ class FoxgloveLive:
         node.get_logger().info(f'Foxglove: {self.url} (Open connection in Foxglove)')
 
     def write(self, topic, msg, stamp_ns):
-        """Send msg on topic (and the robot with odometry) to subscribed clients."""
+        """Send msg (a message or its CDR bytes) on topic to subscribed clients."""
         if self._server is None:
             return
+        msg_class = message_class(self._node, topic, msg, self._types)
         channel = self._channels.get(topic)
         if channel is None:
-            channel = self._channels[topic] = self._advertise(topic, type(msg))
-        if isinstance(msg, Odometry):  # the time, and what draws the robot
+            channel = self._channels[topic] = self._advertise(topic, msg_class)
+        if msg_class is Odometry:  # the time, and what draws the robot
             self._server.broadcast_time(stamp_ns)
             self._write_robot(msg, stamp_ns)
         if not channel.has_sinks():
             return
-        if isinstance(msg, Path):  # the costliest message: throttled
+        if msg_class is Path:  # the costliest message: throttled
             now = time.monotonic()
             if now - self._path_wall < PATH_PERIOD_S:
                 return
             self._path_wall = now
-        channel.log(serialize_message(msg), log_time=stamp_ns)
+        channel.log(msg if isinstance(msg, bytes) else serialize_message(msg),
+                    log_time=stamp_ns)
 
     def close(self):
         """Stop the server (idempotent)."""
@@ -125,23 +130,36 @@ class FoxgloveLive:
             topic, message_encoding='cdr', schema=schema, context=self._context)
 
     def _write_robot(self, odom, stamp_ns):
+        """Draw the robot of odom (an Odometry or its bytes) for whoever watches."""
         m = self._messages
-        child_frame = odom.child_frame_id
-        if self._transforms is not None and self._transforms.has_sinks():
-            p = odom.pose.pose.position
-            q = odom.pose.pose.orientation
-            self._transforms.log(m.FrameTransforms(transforms=[m.FrameTransform(
-                timestamp=_timestamp(m, stamp_ns), parent_frame_id=odom.header.frame_id,
-                child_frame_id=child_frame, translation=m.Vector3(x=p.x, y=p.y, z=p.z),
-                rotation=m.Quaternion(x=q.x, y=q.y, z=q.z, w=q.w))]), log_time=stamp_ns)
-        if not self._scene.has_sinks():
+        transforms = self._transforms is not None and self._transforms.has_sinks()
+        scene = self._scene.has_sinks()
+        if not scene:
             self._scene_walls.clear()  # a new subscriber gets every robot at once
+            if not transforms:
+                return  # nobody looks: the bytes need not be read
+        frame, child_frame, p, q = _odometry_fields(odom)
+        if transforms:
+            self._transforms.log(m.FrameTransforms(transforms=[m.FrameTransform(
+                timestamp=_timestamp(m, stamp_ns), parent_frame_id=frame,
+                child_frame_id=child_frame, translation=m.Vector3(x=p[0], y=p[1], z=p[2]),
+                rotation=m.Quaternion(x=q[0], y=q[1], z=q[2], w=q[3]))]), log_time=stamp_ns)
+        if not scene:
             return
         now = time.monotonic()
         if now - self._scene_walls.get(child_frame, -SCENE_PERIOD_S) < SCENE_PERIOD_S:
             return
         self._scene_walls[child_frame] = now
         self._scene.log(robot_scene(m, child_frame, stamp_ns), log_time=stamp_ns)
+
+
+def _odometry_fields(odom):
+    """Return (frame_id, child_frame_id, position, orientation) of an Odometry or its bytes."""
+    if isinstance(odom, bytes):
+        return read_odometry(odom)[1:]
+    p, q = odom.pose.pose.position, odom.pose.pose.orientation
+    return (odom.header.frame_id, odom.child_frame_id, (p.x, p.y, p.z),
+            (q.x, q.y, q.z, q.w))
 
 
 def _timestamp(messages, stamp_ns):

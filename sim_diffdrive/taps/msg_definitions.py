@@ -17,9 +17,11 @@ The full ``ros2msg`` definition of a message type, as rosbag2 writes it into MCA
 
 The type's .msg text, then for each type it uses (depth first, sorted, once each) a line of 80
 '=', ``MSG: pkg/Type`` and that type's .msg text, read from the ament index.  The MCAP
-recorder and the Foxglove server both describe the CDR bytes they carry with it.
+recorder and the Foxglove server both describe the CDR bytes they carry with it, and both
+take a message as an object or as those bytes (``message_class``).
 """
 
+import itertools
 import os
 import re
 
@@ -39,6 +41,30 @@ def type_name(message_class):
     """Return a message class's ROS 2 type name, e.g. 'nav_msgs/msg/Odometry'."""
     package = message_class.__module__.partition('.')[0]
     return f'{package}/msg/{message_class.__name__}'
+
+
+def topic_type(node, topic):
+    """Return the message class node publishes or subscribes on topic (its full name)."""
+    for entity in itertools.chain(node.publishers, node.subscriptions):
+        if entity.topic_name == topic:
+            return entity.msg_type
+    raise LookupError(f'{node.get_fully_qualified_name()} has no publisher or subscription '
+                      f'on {topic}')
+
+
+def message_class(node, topic, msg, types):
+    """
+    Return the class of msg, sent or heard by node on topic: a message, or its CDR bytes.
+
+    The simulator publishes and subscribes bytes where it can; their class is the one of
+    node's publisher or subscription on the topic, cached in the dict types.
+    """
+    if not isinstance(msg, bytes):
+        return type(msg)
+    msg_class = types.get(topic)
+    if msg_class is None:
+        msg_class = types[topic] = topic_type(node, topic)
+    return msg_class
 
 
 def message_definition(name):

@@ -15,11 +15,12 @@
 """
 The record_file tap: the simulator's traffic as an MCAP file in the ROS 2 encoding.
 
-Messages are CDR (``rclpy.serialization.serialize_message``, byte for byte what went out on
-DDS); each type's schema is its full ``ros2msg`` definition as rosbag2 writes it: the type's
-.msg text, then for each type it uses (depth first, once each) a line of 80 '=', ``MSG:
-pkg/Type`` and that type's .msg text, read from the ament index.  So Foxglove, ``ros2 bag
-info/play`` and any generic ROS 2 MCAP reader open the file without this package.
+Messages are CDR, byte for byte what went out on DDS: the simulator's bytes as they are, a
+message object through ``rclpy.serialization.serialize_message``.  Each type's schema is its
+full ``ros2msg`` definition as rosbag2 writes it: the type's .msg text, then for each type it
+uses (depth first, once each) a line of 80 '=', ``MSG: pkg/Type`` and that type's .msg text,
+read from the ament index.  So Foxglove, ``ros2 bag info/play`` and any generic ROS 2 MCAP
+reader open the file without this package.
 
 The file is chunked (zstd) and finished with its summary (schemas, channels, message counts,
 chunk index) by ``close()``, which the simulator calls on every exit path (Ctrl-C, SIGTERM,
@@ -36,6 +37,7 @@ from mcap.well_known import MessageEncoding
 from mcap.well_known import SchemaEncoding
 from mcap.writer import Writer
 from rclpy.serialization import serialize_message
+from sim_diffdrive.taps.msg_definitions import message_class
 from sim_diffdrive.taps.msg_definitions import message_definition
 from sim_diffdrive.taps.msg_definitions import type_name
 
@@ -60,12 +62,14 @@ class McapRecorder:
         """Open path for writing (OSError if it cannot be, e.g. no such directory)."""
         self.path = os.fspath(path)
         self.name = f'record_file {self.path}'
+        self._node = node
         self._logger = node.get_logger()
         self._closed = False
         self._failed = False
         self._count = 0
         self._schemas = {}  # type name -> schema id
         self._channels = {}  # (topic, message class) -> channel id
+        self._types = {}  # topic -> message class of the bytes given on it
         self._file = open(self.path, 'wb')
         try:
             self._writer = Writer(self._file)
@@ -82,19 +86,24 @@ class McapRecorder:
         self._logger.info(f'Recording to {os.path.abspath(self.path)} (MCAP)')
 
     def write(self, topic, msg, stamp_ns):
-        """Append msg on topic at simulated time stamp_ns (registering its channel once)."""
+        """
+        Append msg on topic at simulated time stamp_ns (registering its channel once).
+
+        msg is a message or its CDR bytes.
+        """
         if self._closed:
             return
         try:
-            key = (topic, type(msg))
+            msg_class = message_class(self._node, topic, msg, self._types)
+            key = (topic, msg_class)
             channel = self._channels.get(key)
             if channel is None:
                 channel = self._channels[key] = self._writer.register_channel(
                     topic=topic, message_encoding=MessageEncoding.CDR,
-                    schema_id=self._schema(type(msg)))
+                    schema_id=self._schema(msg_class))
+            data = msg if isinstance(msg, bytes) else serialize_message(msg)
             self._writer.add_message(channel_id=channel, log_time=stamp_ns,
-                                     publish_time=stamp_ns, sequence=self._count,
-                                     data=serialize_message(msg))
+                                     publish_time=stamp_ns, sequence=self._count, data=data)
         except BaseException:
             # The caller reports the error and drops this tap; close() then only lets go.
             self._failed = True

@@ -1,0 +1,240 @@
+# Copyright 2026 motion_challenges contributors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The CDR bytes of the few messages the simulator sends and reads, with numpy and struct (no ROS).
+
+rclpy publishes bytes as a serialized message and hands a ``raw=True`` subscription the bytes
+it received, so the simulator need not turn messages into Python objects and back on its hot
+path: it writes every robot's ``nav_msgs/Odometry`` and the ``/tf`` message into byte layouts
+made once (``OdometryLayout``, ``TransformLayout``; made anew when frames or covariances
+change) and reads ``linear.x``, ``angular.z`` and the stamp of a command where they lie
+(``read_twist``, ``read_twist_stamped``).
+
+The encoding is XCDR1 as the ROS 2 middlewares write it: a 4-byte encapsulation header
+(``00 01 00 00``: CDR, little endian; ``00 00``: big endian), then the body, in which a 4-byte
+value is aligned to 4 and an 8-byte one to 8, counted from the body's start; a string is a
+uint32 length (with its NUL), its bytes and the NUL.  A message in another encapsulation
+raises UnsupportedEncoding, for the caller to decode it the slow way.
+"""
+
+import struct
+
+import numpy as np
+
+_NS = 1_000_000_000
+# Encapsulation header of what is written here: CDR, little endian, no options.
+ENCAPSULATION = b'\x00\x01\x00\x00'
+_BODY = len(ENCAPSULATION)
+# Encapsulation kinds read here (the second byte; the first is 0): byte order of each.
+_BYTE_ORDER = {0: '>', 1: '<'}
+_LE_STAMP = struct.Struct('<iI')
+_LE_TWIST = struct.Struct('<d32xd')  # linear.x, (linear.y, .z, angular.x, .y), angular.z
+# Odometry after its frames (8-byte aligned): pose (position 3, orientation 4, covariance 36
+# doubles), twist (linear 3, angular 3, covariance 36 doubles).
+_POSE_DOUBLES = 7
+_TWIST_DOUBLES = 6
+_COVARIANCE_DOUBLES = 36
+_ODOMETRY_DOUBLES = 2 * _COVARIANCE_DOUBLES + _POSE_DOUBLES + _TWIST_DOUBLES
+# Where each patched value lies, in doubles from the start of the pose.
+_X, _Y, _QZ, _QW = 0, 1, 5, 6
+_LINEAR_X = _POSE_DOUBLES + _COVARIANCE_DOUBLES
+_ANGULAR_Z = _LINEAR_X + 5
+
+
+class UnsupportedEncoding(ValueError):
+    """The bytes are not in the plain CDR encapsulation read here (XCDR2, say)."""
+
+
+def cdr_string(text):
+    """Return text as a CDR string: uint32 length with the NUL (little endian), bytes, NUL."""
+    data = text.encode() + b'\0'
+    return struct.pack('<I', len(data)) + data
+
+
+def pad(body, alignment):
+    """Append zeros to the bytearray body until its length is a multiple of alignment."""
+    body += bytes(-len(body) % alignment)
+
+
+def _byte_order(data):
+    order = _BYTE_ORDER.get(data[1]) if len(data) >= _BODY and data[0] == 0 else None
+    if order is None:
+        raise UnsupportedEncoding(f'encapsulation {bytes(data[:2]).hex()} is not plain CDR')
+    return order
+
+
+def header_stamp_ns(data):
+    """Return the stamp [ns] of a message whose first field is a std_msgs/Header."""
+    order = _byte_order(data)
+    sec, nanosec = (_LE_STAMP if order == '<' else struct.Struct('>iI')).unpack_from(data, _BODY)
+    return sec * _NS + nanosec
+
+
+def read_twist(data):
+    """Return (linear.x, angular.z) of a geometry_msgs/Twist's bytes."""
+    if _byte_order(data) == '<':
+        return _LE_TWIST.unpack_from(data, _BODY)
+    return struct.unpack_from('>d32xd', data, _BODY)
+
+
+def read_twist_stamped(data):
+    """Return (stamp [ns], linear.x, angular.z) of a geometry_msgs/TwistStamped's bytes."""
+    order = _byte_order(data)
+    sec, nanosec, length = struct.unpack_from(order + 'iII', data, _BODY)
+    # The twist follows the frame_id string, its doubles aligned to 8 within the body.
+    twist = _BODY + ((12 + length + 7) & ~7)
+    linear, angular = struct.unpack_from(order + 'd32xd', data, twist)
+    return sec * _NS + nanosec, linear, angular
+
+
+def read_odometry(data):
+    """
+    Return (stamp [ns], frame_id, child_frame_id, position, orientation) of Odometry bytes.
+
+    position is (x, y, z), orientation (x, y, z, w).
+    """
+    order = _byte_order(data)
+    sec, nanosec = struct.unpack_from(order + 'iI', data, _BODY)
+    offset = _BODY + 8
+    frames = []
+    for _ in range(2):
+        offset += -(offset - _BODY) % 4
+        (length,) = struct.unpack_from(order + 'I', data, offset)
+        frames.append(bytes(data[offset + 4:offset + 3 + length]).decode())
+        offset += 4 + length
+    offset += -(offset - _BODY) % 8
+    pose = struct.unpack_from(order + '7d', data, offset)
+    return sec * _NS + nanosec, frames[0], frames[1], pose[:3], pose[3:]
+
+
+def covariance(diagonal):
+    """Return the flat, row-major 6x6 matrix with the given diagonal and zeros elsewhere."""
+    values = [0.0] * 36
+    for i, value in enumerate(diagonal):
+        values[7 * i] = float(value)
+    return values
+
+
+class OdometryLayout:
+    """
+    Every robot's nav_msgs/Odometry as CDR bytes in one buffer, patched per step with numpy.
+
+    ``frames`` holds (frame_id, child_frame_id) per robot; ``pose_covariance`` and
+    ``twist_covariance`` are the 36 values every robot's message carries.  Laid out once: a
+    change of frames or covariances makes a new layout.  ``serialize`` writes the stamp, the
+    poses and the velocities of every robot with a few vectorized writes and returns one
+    ``bytes`` per robot.  Position z and orientation x, y stay 0, as a unicycle's do, and so do
+    the velocities the unicycle does not have (linear.y, .z, angular.x, .y).
+
+    Each message starts 4 bytes past a multiple of 8 in the buffer, so that its body (after the
+    encapsulation header) is 8-aligned and every double of every message is one element of a
+    float64 view of the buffer.
+    """
+
+    def __init__(self, frames, pose_covariance, twist_covariance):
+        covariances = (np.asarray(pose_covariance, dtype='<f8'),
+                       np.asarray(twist_covariance, dtype='<f8'))
+        if any(c.shape != (_COVARIANCE_DOUBLES,) for c in covariances):
+            raise ValueError('a covariance has 36 values (6x6, row-major)')
+        buffer = bytearray()
+        stamps, poses, self._spans = [], [], []
+        for frame_id, child_frame_id in frames:
+            buffer += bytes(-(len(buffer) + _BODY) % 8)
+            start = len(buffer)
+            body = bytearray(8)  # the stamp
+            body += cdr_string(frame_id)
+            pad(body, 4)
+            body += cdr_string(child_frame_id)
+            pad(body, 8)
+            pose = len(body)
+            doubles = np.zeros(_ODOMETRY_DOUBLES, dtype='<f8')
+            doubles[_POSE_DOUBLES:_LINEAR_X] = covariances[0]
+            doubles[_LINEAR_X + _TWIST_DOUBLES:] = covariances[1]
+            body += doubles.tobytes()
+            buffer += ENCAPSULATION + body
+            stamps.append(start + _BODY)
+            poses.append(start + _BODY + pose)
+            self._spans.append((start, len(buffer)))
+        buffer += bytes(-len(buffer) % 8)
+        self._buffer = np.frombuffer(buffer, dtype=np.uint8).copy()
+        self._sec = np.array(stamps, dtype=np.intp) // 4
+        pose = np.array(poses, dtype=np.intp) // 8
+        self._x, self._y = pose + _X, pose + _Y
+        self._qz, self._qw = pose + _QZ, pose + _QW
+        self._linear, self._angular = pose + _LINEAR_X, pose + _ANGULAR_Z
+        self._i32 = self._buffer.view('<i4')
+        self._u32 = self._buffer.view('<u4')
+        self._f64 = self._buffer.view('<f8')
+
+    def __len__(self):
+        return len(self._spans)
+
+    def serialize(self, sec, nanosec, x, y, qz, qw, linear, angular):
+        """Return every robot's message (a list of bytes) for these values, one entry each."""
+        self._i32[self._sec] = sec
+        self._u32[self._sec + 1] = nanosec
+        f64 = self._f64
+        f64[self._x] = x
+        f64[self._y] = y
+        f64[self._qz] = qz
+        f64[self._qw] = qw
+        f64[self._linear] = linear
+        f64[self._angular] = angular
+        data = self._buffer.tobytes()
+        return [data[start:end] for start, end in self._spans]
+
+
+class TransformLayout:
+    """
+    The CDR bytes of a tf2_msgs/TFMessage with fixed frames; ``serialize`` fills in the rest.
+
+    ``frames`` holds (frame_id, child_frame_id) per transform.  Translations have z = 0 and
+    rotations turn about z only, as a unicycle's do.  Each transform: stamp (int32 sec, uint32
+    nanosec), frame_id, child_frame_id, translation (3 doubles), rotation (4 doubles).
+    """
+
+    def __init__(self, frames):
+        body = bytearray(struct.pack('<I', len(frames)))
+        stamps, translations = [], []
+        for frame_id, child_frame_id in frames:
+            pad(body, 4)
+            stamps.append(len(body))
+            body += bytes(8)
+            body += cdr_string(frame_id)
+            pad(body, 4)
+            body += cdr_string(child_frame_id)
+            pad(body, 8)
+            translations.append(len(body))
+            body += bytes(56)
+        self._bytes = bytearray(ENCAPSULATION) + body
+        self._view = np.frombuffer(self._bytes, dtype=np.uint8)
+        self._stamp = _BODY + np.array(stamps, dtype=np.intp)
+        self._xy = _BODY + np.array(translations, dtype=np.intp)
+        self._zw = self._xy + 40  # rotation z, w: after translation (24) and rotation x, y
+
+    def serialize(self, sec, nanosec, x, y, qz, qw):
+        """Return the message's bytes for these values (arrays with one entry per transform)."""
+        count = len(self._stamp)
+        stamp = np.array([[sec, nanosec]], dtype='<u4').repeat(count, axis=0)
+        _scatter(self._view, self._stamp, stamp)
+        _scatter(self._view, self._xy, np.stack([x, y], axis=1).astype('<f8'))
+        _scatter(self._view, self._zw, np.stack([qz, qw], axis=1).astype('<f8'))
+        return bytes(self._bytes)
+
+
+def _scatter(view, offsets, rows):
+    """Write each row of rows (as bytes) at its offset in view."""
+    raw = np.ascontiguousarray(rows).view(np.uint8).reshape(len(offsets), -1)
+    view[offsets[:, None] + np.arange(raw.shape[1])] = raw
