@@ -262,6 +262,9 @@ def test_the_lockstep_counts_the_stamps_of_bytes_as_of_messages(ros_context):
         plain = node.create_publisher(Twist, 'plain', 10)
         counter = MessageCounter.of(node, '/clock')
         executor.add_node(node)
+        deadline = time.monotonic() + 10.0
+        while stamped.get_subscription_count() == 0 and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.01)
         layout = OdometryLayout([('odom', 'base_footprint')], *[covariance([0] * 6)] * 2)
         odom.publish(layout.serialize(12, 345, *[np.zeros(1)] * 6)[0])
         assert counter.sent_stamp['/odom'] == 12 * NS + 345
@@ -275,7 +278,6 @@ def test_the_lockstep_counts_the_stamps_of_bytes_as_of_messages(ros_context):
             msg.header.frame_id = frame
             stamped.publish(serialize_message(msg) if sec % 2 else msg)
         assert counter.sent_stamp['/cmd'] == 9 * NS + 5
-        deadline = time.monotonic() + 10.0
         while len(heard) < 3 and time.monotonic() < deadline:
             executor.spin_once(timeout_sec=0.1)
         assert all(isinstance(data, bytes) for data in heard) and len(heard) == 3
