@@ -38,8 +38,9 @@ $(STAMP): Makefile setup.py package.xml tools/setup_venv.sh tools/build_tf2_msgs
 test: $(STAMP)
 	source $(VENV)/bin/activate && python -m pytest -q -n 2 --dist worksteal test
 
+# make demo VIEW=9090: watch every run live at http://127.0.0.1:9090/ (at 2x real time).
 demo: $(STAMP)
-	source $(VENV)/bin/activate && python tools/demo.py
+	source $(VENV)/bin/activate && python tools/demo.py $(if $(VIEW),--view $(VIEW))
 
 bench: $(STAMP)
 	source $(VENV)/bin/activate && python tools/bench.py

@@ -169,7 +169,8 @@ def test_the_page_allows_this_machine_only(graph):
     port = free_port()
     sim = graph.sim(view_port=port)
     grpc_port = int(re.search(r':(\d+)/proxy', sim.taps.named('view_port').grpc_url).group(1))
-    with urllib.request.urlopen(f'http://localhost:{port}/') as answer:
+    with urllib.request.urlopen(f'http://localhost:{port}/') as answer:  # redirected to ?url=
+        assert answer.url == sim.taps.named('view_port').url
         page = answer.read()
         policy = answer.headers['Content-Security-Policy']
     assert b'fonts.googleapis.com' not in page and b'<canvas' in page

@@ -135,8 +135,8 @@ def main():
         for i, motion in enumerate(DEMO, 1):
             print(f'[{i}/{len(DEMO)}] {MOTIONS[motion][0]} ...', flush=True)
             record = {'record_file': str(recording(motion, record_dir))} if record_dir else {}
-            record.update({'view_port': options.view} if options.view else {})
-            result = watch_motion(graph, run.start, run.stop, motion, options.rtf, **record)
+            view = {'view_port': options.view} if options.view else {}
+            result = watch_motion(graph, run.start, run.stop, motion, options.rtf, **record, **view)
             if result['exit'] != 0:
                 print(f'  exit {result["exit"]}; its last lines:\n{tail(result["log"], 8)}')
             runs.append((motion, result, recorded_commands(record['record_file'])

@@ -116,9 +116,15 @@ class _PageHandler(BaseHTTPRequestHandler):
         if self.headers.get('Host') not in {f'{host}:{port}' for host in _LOCAL_HOSTS}:
             self.send_error(403, 'this viewer answers to 127.0.0.1 and localhost only')
             return
-        path = self.path.split('?', 1)[0]
+        path, _, query = self.path.partition('?')
         if path == RUN_PATH:
             self._answer(' '.join(self._run).encode(), 'text/plain')
+            return
+        if path == '/' and 'url=' not in query:  # http://127.0.0.1:PORT/ opens this run
+            self.send_response(302)
+            self.send_header('Location', page_url(self.server.server_address[1], self._run[1]))
+            self.send_header('Content-Length', '0')
+            self.end_headers()
             return
         upstream = http.client.HTTPConnection('127.0.0.1', self._upstream_port, timeout=10.0)
         try:
