@@ -77,7 +77,7 @@ PATH_RADIUS = 0.01
 _JUMP_MARGIN_M = 1e-3
 # More robots than these: no name labels in the view, no legend in the plots (they pile up).
 _LABELLED_ROBOTS = 16
-_LEGEND_ROBOTS = 4
+_LEGEND_ROBOTS = 1
 _GOLDEN = 0.618033988749895
 
 
@@ -113,6 +113,9 @@ class BrowserView:
             self._process = self._start_rerun(program, host, grpc_port, files_port)
             self.url = page_url(self._page.port, self.grpc_url)
             self._rec = rr.RecordingStream('unicycle_sim', recording_id=run)
+            # Simulated time is the one that matters; the wall clock of logging would only
+            # show as a second timeline and a "latency" of up to a frame plus the page's load.
+            rr.set_log_time_enabled(False, recording=self._rec)
             self._rec.connect_grpc(self.grpc_url, default_blueprint=_blueprint(node.fleet))
             self._log_static(node.fleet.names)
         except BaseException:
