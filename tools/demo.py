@@ -136,7 +136,8 @@ def main():
             print(f'[{i}/{len(DEMO)}] {MOTIONS[motion][0]} ...', flush=True)
             record = {'record_file': str(recording(motion, record_dir))} if record_dir else {}
             view = {'view_port': options.view} if options.view else {}
-            result = watch_motion(graph, run.start, run.stop, motion, options.rtf, **record, **view)
+            result = watch_motion(graph, run.start, run.stop, motion, options.rtf,
+                                  **record, **view)
             if result['exit'] != 0:
                 print(f'  exit {result["exit"]}; its last lines:\n{tail(result["log"], 8)}')
             runs.append((motion, result, recorded_commands(record['record_file'])
