@@ -222,23 +222,57 @@ def test_without_rerun_sdk_the_simulator_says_so_and_runs(graph, tmp_path):
     assert 'Traceback' not in output
 
 
-@pytest.mark.parametrize('signum', [signal.SIGINT, signal.SIGTERM, signal.SIGKILL])
+@pytest.mark.parametrize('signum', [signal.SIGINT, signal.SIGTERM])
 def test_the_rerun_program_ends_with_the_simulator(procs, signum):
-    if signum == signal.SIGKILL and shutil.which('setpriv') is None:
-        pytest.skip('without setpriv (util-linux) a killed simulator leaves rerun behind')
     port = free_port()
     sim = procs('unicycle_sim', 'unicycle_sim', *harness.ros_params(f'view_port:={port}'))
     assert wait_for_line(sim, 'Browser view: open'), sim.describe()
-    rerun = children(sim.pid)
-    assert len(rerun) == 1 and 'rerun' in command_line(rerun[0]), rerun
+    rerun = rerun_child(sim)
     sim.send(signum)
-    sim.wait(10.0)
-    deadline = time.monotonic() + 5.0
-    while alive(rerun[0]):
-        assert time.monotonic() < deadline, f'rerun ({rerun[0]}) outlived the simulator'
-        time.sleep(0.05)
+    assert sim.wait(10.0) == 0, sim.describe()
+    assert_ends(rerun)
     with socket.socket() as again:  # and the port is free again
         again.bind(('127.0.0.1', port))
+
+
+@pytest.mark.skipif(shutil.which('setpriv') is None,
+                    reason='without setpriv (util-linux) a killed owner leaves rerun behind')
+def test_the_rerun_program_ends_with_a_killed_owner(tmp_path):
+    # Not a ROS node: one killed outright can leave DDS shared memory behind for other tests.
+    code = ('import sys, time, types\n'
+            'import numpy as np\n'
+            'from sim_diffdrive.taps.view import BrowserView\n'
+            "fleet = types.SimpleNamespace(x=np.zeros(1), y=np.zeros(1), names=[''])\n"
+            'node = types.SimpleNamespace(\n'
+            '    params=types.SimpleNamespace(publish_clock=True), fleet=fleet,\n'
+            '    get_parameter=lambda name: types.SimpleNamespace(value=False),\n'
+            '    get_logger=lambda: types.SimpleNamespace(info=print))\n'
+            'BrowserView(0, node)\n'
+            'sys.stdout.flush()\n'
+            'time.sleep(60)\n')
+    owner = harness.start_python(code, log_path=tmp_path / 'owner.log')
+    try:
+        assert wait_for_line(owner, 'Browser view: open'), owner.describe()
+        rerun = rerun_child(owner)
+        owner.send(signal.SIGKILL)
+        owner.wait(10.0)
+        assert_ends(rerun)
+    finally:
+        owner.kill()
+
+
+def rerun_child(process):
+    """Return the pid of the one rerun program process started (its only child)."""
+    pids = children(process.pid)
+    assert len(pids) == 1 and '/rerun ' in command_line(pids[0]), pids
+    return pids[0]
+
+
+def assert_ends(pid, timeout=5.0):
+    deadline = time.monotonic() + timeout
+    while alive(pid):
+        assert time.monotonic() < deadline, f'rerun ({pid}) outlived its owner'
+        time.sleep(0.05)
 
 
 def children(pid):
