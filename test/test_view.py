@@ -102,12 +102,19 @@ class ViewerTab:
         near = np.abs(view - ROBOT_RGB).sum(axis=2) < 60
         return np.argwhere(near)
 
-    def wait_for_robot(self, more_than=ROBOT_PIXELS, timeout=20.0):
-        """Return the robot's pixels once the view shows more than more_than of them."""
+    def wait_for_robot(self, shown, timeout=30.0):
+        """
+        Return the robot's pixels once shown(pixels) holds.
+
+        The viewer draws what arrived when it gets to it: on a busy machine (SwiftShader
+        renders on the CPU) it can show the run seconds late, so a test waits for the picture
+        it expects rather than for the first one with something in it.
+        """
         deadline = time.monotonic() + timeout
-        while len(pixels := self.robot_pixels()) <= more_than:
+        while not shown(pixels := self.robot_pixels()):
             assert time.monotonic() < deadline, (
-                f'{len(pixels)} pixels of the robot after {timeout} s')
+                f'{len(pixels)} pixels of the robot after {timeout} s' + (
+                    f', rows {pixels[:, 0].min()}..{pixels[:, 0].max()}' if len(pixels) else ''))
             time.sleep(0.2)
         return pixels
 
@@ -123,19 +130,19 @@ def test_the_browser_shows_the_robot_driving_up_the_screen(graph, browser):
     tab = ViewerTab(browser, url)
     try:
         # The robot at rest where it starts: a box in its colour, seen from above.
-        start = tab.wait_for_robot(more_than=20)
+        start = tab.wait_for_robot(lambda pixels: len(pixels) > ROBOT_PIXELS // 5)
         assert len(start) < ROBOT_PIXELS  # no track yet
         probe = graph.probe(name='driver')
         graph.step()  # (the graph counts messages once its nodes have discovered each other)
         probe.send(0.5, 0.0)  # along +y: up the screen, if ROS's frame is drawn the right way
         graph.step(150)
-        track = tab.wait_for_robot()
         assert graph.pose() == pytest.approx((0.0, 1.5, math.pi / 2), abs=1e-9)
-        # The track begins where the robot stood and grows upwards (smaller rows).
+        # 1.5 m up the screen (about 100 pixels): the robot above where it stood, and its track.
+        track = tab.wait_for_robot(lambda pixels: len(pixels) > ROBOT_PIXELS
+                                   and pixels[:, 0].min() < start[:, 0].min() - 60)
         rows, columns = track[:, 0], track[:, 1]
-        assert start[:, 0].min() < rows.max() < start[:, 0].max()
-        assert rows.min() < start[:, 0].min() - 50
-        assert columns.max() - columns.min() < (rows.max() - rows.min()) / 2
+        assert start[:, 0].min() < rows.max() < start[:, 0].max()  # from where it stood
+        assert columns.max() - columns.min() < (rows.max() - rows.min()) / 2  # straight up
         assert abs(np.median(columns) - np.median(start[:, 1])) < 5
         assert tab.outside == []  # the page asked nothing of any other machine
     finally:
