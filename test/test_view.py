@@ -261,11 +261,15 @@ def test_the_rerun_program_ends_with_a_killed_owner(tmp_path):
     try:
         assert wait_for_line(owner, 'Browser view: open'), owner.describe()
         rerun = rerun_child(owner)
+        with open(f'/proc/{rerun}/environ', 'rb') as environ:  # the view's own directory
+            home = dict(item.split(b'=', 1) for item in environ.read().split(b'\0') if item)
         owner.send(signal.SIGKILL)
         owner.wait(10.0)
         assert_ends(rerun)
     finally:
         owner.kill()
+    # A killed owner cannot remove it: the test does.
+    shutil.rmtree(os.path.dirname(home[b'XDG_CONFIG_HOME'].decode()))
 
 
 def rerun_child(process):
