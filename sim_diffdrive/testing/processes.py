@@ -57,8 +57,7 @@ class Process:
             fd, log_path = tempfile.mkstemp(prefix='sim_graph_', suffix='.log')
             os.close(fd)
         self.log_path = Path(log_path)
-        with open(self.log_path, 'w') as log:
-            _let_children_hear_ctrl_c()
+        _let_children_hear_ctrl_c()
         with open(self.log_path, 'w') as log:
             self.popen = subprocess.Popen(
                 command, stdin=stdin, stdout=log, stderr=subprocess.STDOUT,
