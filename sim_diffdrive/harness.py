@@ -29,6 +29,7 @@ from sim_diffdrive.testing.probe import Probe
 from sim_diffdrive.testing.probe import stamp_s
 from sim_diffdrive.testing.probe import twist
 from sim_diffdrive.testing.probe import twist_of
+from sim_diffdrive.testing.processes import cpu_seconds
 from sim_diffdrive.testing.processes import Process
 from sim_diffdrive.testing.processes import ros_params
 from sim_diffdrive.testing.processes import start
@@ -36,7 +37,7 @@ from sim_diffdrive.testing.processes import start_python
 from sim_diffdrive.testing.processes import stop
 
 __all__ = [
-    'DOMAIN_VARIABLE', 'Probe', 'Process', 'SimGraph', 'angle_error',
+    'DOMAIN_VARIABLE', 'Probe', 'Process', 'SimGraph', 'angle_error', 'cpu_seconds',
     'is_moving', 'isolated_domain_id', 'pose_of', 'ros_params', 'start', 'start_python', 'stop',
     'stamp_s', 'twist', 'twist_of',
 ]

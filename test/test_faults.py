@@ -33,6 +33,7 @@ from geometry_msgs.msg import Twist
 from geometry_msgs.msg import TwistStamped
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from sim_diffdrive.harness import cpu_seconds
 from sim_diffdrive.harness import is_moving as moving
 from sim_diffdrive.harness import pose_of
 from sim_diffdrive.harness import ros_params
@@ -182,35 +183,47 @@ def test_simulator_refuses_garbage_commands_and_stale_stamps(graph, procs):
 
 # -- floods and two controllers ----------------------------------------------------------------
 
-def test_short_cmd_vel_flood_keeps_odometry_rate_and_the_last_command_wins(graph, procs):
-    # tools/stress.py runs the long version (10 kHz for 10 s, memory over time); 2 kHz for a
-    # second is a flood to a robot (controllers send 10 to 50 Hz) yet leaves the simulator
-    # CPU to spare on a busy two-core machine.  The simulator carries a second robot: the
-    # flood must not slow its odometry, nor move it.
+def test_a_cmd_vel_flood_is_cheap_the_last_command_wins_and_other_robots_are_untouched(
+        graph, procs):
+    # tools/stress.py runs the long version (10 kHz for 10 s: odometry's rate, memory over
+    # time); 2000 commands in about a second are a flood to a robot (controllers send 10 to
+    # 50 Hz).  Odometry's rate under a flood is a wall-time figure of the machine, so this test
+    # bounds what the flood costs the simulator in CPU time instead (a busy CI machine once
+    # gave it 34 Hz where 50 were asked).  The simulator
+    # carries a second robot: the flood must not move it.
     namespace = f'{_PREFIX}_flood'
     sim = procs('sim_flood', 'unicycle_sim', *ros_args(
         namespace, KEEP_LAST_COMMAND, 'rate_hz:=50.0', 'robots:=[flooded, calm]'))
     flooded = watch(graph, f'{namespace}/flooded')
     calm = watch(graph, f'{namespace}/calm')
     assert graph.spin_until(lambda: None not in (flooded.odom, calm.odom), 20.0), sim.describe()
+    idle_rate = cpu_rate(sim.pid, 1.0)
+    cpu_before, wall_before = cpu_seconds(sim.pid), time.monotonic()
     publisher = procs('flood', sys.executable, str(STRESS), 'flood', '--rate', '2000',
                       '--seconds', '1.0', '--final', '0.777', '-0.555',
                       *ros_args(f'{namespace}/flooded'))
     assert not wait_all(graph, [publisher], 30.0), publisher.describe()
-    graph.spin_for(0.3)
-    assert publisher.poll() == 0, publisher.describe()
     report = json.loads(publisher.output().strip().splitlines()[-1])
-    assert report['rate'] > 1800.0, report
-    window = (report['start_wall'] + 0.1, report['end_wall'] - 0.1)
-    for name, watcher in (('flooded', flooded), ('calm', calm)):
-        stamps = [stamp_s(o) for o in watcher.odoms if window[0] <= stamp_s(o) < window[1]]
-        rate = len(stamps) / (window[1] - window[0])
-        # Within 15 %: a machine busy with other tests (load 8 on 2 cores) measured 45.0 Hz.
-        assert abs(rate - 50.0) <= 7.5, (
-            f'{name} odometry at {rate:.1f} Hz under {report["rate"]:.0f} Hz')
-    assert twist(flooded.odom) == (0.777, -0.555)
+    assert report['acked'] and report['sent'] >= 2000, report
+    assert graph.spin_until(lambda: twist(flooded.odom) == (0.777, -0.555), 10.0), sim.describe()
+    flood_cpu = (cpu_seconds(sim.pid) - cpu_before
+                 - idle_rate * (time.monotonic() - wall_before))
+    # The simulator's own steps are taken out at the rate measured just before.  Measured
+    # 0.04-0.07 CPU s for the 2000 commands (20-35 us each), idle or beside three busy loops
+    # on 2 cores; the bound fails at 200 us a command.
+    assert flood_cpu < 0.4, f'{flood_cpu:.3f} CPU s for {report["sent"]} commands'
+    window = (report['start_wall'], report['end_wall'])
+    during = [o for o in flooded.odoms if window[0] <= stamp_s(o) < window[1]]
+    assert during, 'no odometry while the flood lasted'
     assert {(pose_of(o), twist(o)) for o in calm.odoms} == {((0.0, 0.0, 0.0), (0.0, 0.0))}
     assert 'Traceback' not in sim.output()
+
+
+def cpu_rate(pid, seconds):
+    """Return the share of a core process pid uses over the next seconds of wall time."""
+    used, wall = cpu_seconds(pid), time.monotonic()
+    time.sleep(seconds)
+    return (cpu_seconds(pid) - used) / (time.monotonic() - wall)
 
 
 def test_two_controllers_at_once_are_warned_about_once(graph, procs):

@@ -156,6 +156,18 @@ def stop(process, signum=signal.SIGINT, timeout=5.0):
     return process.output()
 
 
+def cpu_seconds(pid):
+    """Return the CPU seconds process pid has used, every thread (Linux schedstat, in ns)."""
+    total = 0
+    for task in os.listdir(f'/proc/{pid}/task'):
+        try:
+            with open(f'/proc/{pid}/task/{task}/schedstat') as schedstat:
+                total += int(schedstat.read().split()[0])
+        except (FileNotFoundError, ProcessLookupError):
+            pass  # a thread that just ended
+    return total * 1e-9
+
+
 def _let_children_hear_ctrl_c():
     # A process started from a non-interactive shell's background job ignores SIGINT, and so
     # would its children: a handler (reset to the default at exec) rather than an ignored

@@ -17,7 +17,6 @@
 from dataclasses import asdict
 from dataclasses import dataclass
 import math
-import os
 import subprocess
 from types import SimpleNamespace
 
@@ -109,18 +108,6 @@ class Run:
     def stop_all(self):
         for process in list(self.running):
             self.stop(process)
-
-
-def cpu_s(pid):
-    """Return the CPU seconds process pid has used, every thread (schedstat: in ns, not ticks)."""
-    total = 0
-    for task in os.listdir(f'/proc/{pid}/task'):
-        try:
-            with open(f'/proc/{pid}/task/{task}/schedstat') as schedstat:
-                total += int(schedstat.read().split()[0])
-        except ProcessLookupError:
-            pass  # a thread that just ended
-    return total / NS
 
 
 def tail(output, lines=12):

@@ -54,21 +54,21 @@ def publish_cost(pub, count):
     defaults = {spec.name: spec.default for spec in PARAMETERS}
     msg.pose.covariance[::7] = defaults['pose_covariance_diagonal']
     msg.twist.covariance[::7] = defaults['twist_covariance_diagonal']
-    start = core.cpu_s(os.getpid())
+    start = harness.cpu_seconds(os.getpid())
     for k in range(count):
         msg.header.stamp = Time(sec=k // 50, nanosec=k % 50 * 20_000_000)
         msg.pose.pose.position.x = 0.001 * k
         pub.publish(msg)
-    return (core.cpu_s(os.getpid()) - start) / count
+    return (harness.cpu_seconds(os.getpid()) - start) / count
 
 
 def window(graph, pid, first, seconds):
     """Measure CPU s of pid, wall s, steps and sim s (r0's odometry): `seconds`, 5 steps."""
-    cpu, steps, wall = core.cpu_s(pid), len(first.odoms), time.monotonic()
+    cpu, steps, wall = harness.cpu_seconds(pid), len(first.odoms), time.monotonic()
     stamp = harness.stamp_s(first.odom)
     graph.spin_until(lambda: time.monotonic() - wall >= seconds
                      and len(first.odoms) - steps >= 5, seconds + 10.0, poll=0.005)
-    return {'cpu_s': core.cpu_s(pid) - cpu, 'wall_s': time.monotonic() - wall,
+    return {'cpu_s': harness.cpu_seconds(pid) - cpu, 'wall_s': time.monotonic() - wall,
             'steps': len(first.odoms) - steps, 'sim_s': harness.stamp_s(first.odom) - stamp}
 
 

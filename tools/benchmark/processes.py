@@ -131,9 +131,9 @@ def sim_process(run):
             'unicycle_sim', rate_hz=50.0)
 
         def cpu_percent():
-            used, wall = core.cpu_s(sim.pid), time.monotonic()
+            used, wall = harness.cpu_seconds(sim.pid), time.monotonic()
             graph.spin_for(run.sizes.cpu_seconds)
-            return 100.0 * (core.cpu_s(sim.pid) - used) / (time.monotonic() - wall)
+            return 100.0 * (harness.cpu_seconds(sim.pid) - used) / (time.monotonic() - wall)
         try:
             if not graph.spin_until(lambda: probe.odom is not None
                                     and probe.cmd_pub.get_subscription_count() > 0, 15.0):
