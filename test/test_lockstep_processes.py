@@ -117,17 +117,20 @@ def simulator(graph, request):
         stop(sim)
 
 
-def run_motion(graph, probe, executable, *params):
+def run_motion(graph, sim, probe, executable, *params):
     """Run a motion on sim time to its end; return (exit code, output, final odometry pose)."""
     motion = start(executable, 'use_sim_time:=true', *params)
     try:
         finished = graph.spin_until(lambda: motion.poll() is not None, 60.0)
     finally:
         output = stop(motion)
-    assert finished, 'motion did not finish:\n' + output
+    assert finished, (f'motion did not finish; the probe is at {stamp_s(probe.odom)} s:\n'
+                      f'{output}\n{sim.describe()}')
     # The stop reached the simulator before the motion exited; wait for odometry after it.
-    stamp = stamp_s(probe.odom)
-    assert graph.spin_until(lambda: stamp_s(probe.odom) > stamp + 0.1, 10.0)
+    # From the probe's clock (/clock keeps one message): the latest odometry the probe has
+    # taken may be one queued long before, while the machine was busy.
+    after_s = probe.get_clock().now().nanoseconds * 1e-9 + 0.1
+    assert graph.spin_until(lambda: stamp_s(probe.odom) > after_s, 10.0)
     return motion.returncode, output, probe.odom
 
 
@@ -143,12 +146,12 @@ def assert_at(odom, expected, output):
 # motion was once silent for longer than the fixture's 0.5 s, was dropped, and failed.
 @pytest.mark.parametrize('simulator', [2.0], indirect=True)
 def test_motions_end_exact_and_bit_identical_on_a_busy_machine(graph, busy_machine, simulator):
-    _, probe, reset = simulator
+    sim, probe, reset = simulator
     ends = {}
     for run in range(2):
         for executable, *params in (CLOSED_LOOP, OPEN_LOOP):
             reset()
-            code, output, odom = run_motion(graph, probe, executable, *params)
+            code, output, odom = run_motion(graph, sim, probe, executable, *params)
             assert code == 0, output
             assert 'Taking part in lockstep' in output, output
             ends.setdefault(executable, []).append(odom.pose.pose)
@@ -178,7 +181,7 @@ def test_a_killed_participant_is_left_behind_and_a_late_one_is_waited_for(graph,
     finally:
         stop(circle, signal.SIGKILL)
     _, _, start_yaw = pose_of(probe.odom)
-    code, output, odom = run_motion(graph, probe, *OPEN_LOOP)
+    code, output, odom = run_motion(graph, sim, probe, *OPEN_LOOP)
     assert code == 0, output
     assert angle_error(pose_of(odom)[2], start_yaw - math.radians(90.0)) < 1e-12, output
     sim_output = stop(sim)
@@ -222,7 +225,7 @@ def test_a_clock_held_for_a_slow_participant_is_not_a_dead_simulator(graph, simu
     staller = start_python(STALLER)
     try:
         assert graph.spin_until(lambda: 'staller' in ''.join(probe.get_node_names()), 20.0)
-        code, output, odom = run_motion(graph, probe, *CLOSED_LOOP)
+        code, output, odom = run_motion(graph, sim, probe, *CLOSED_LOOP)
     finally:
         staller_output = stop(staller)
     assert 'stalled' in staller_output, staller_output
