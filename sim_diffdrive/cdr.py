@@ -218,23 +218,25 @@ class TransformLayout:
             pad(body, 8)
             translations.append(len(body))
             body += bytes(56)
-        self._bytes = bytearray(ENCAPSULATION) + body
-        self._view = np.frombuffer(self._bytes, dtype=np.uint8)
-        self._stamp = _BODY + np.array(stamps, dtype=np.intp)
-        self._xy = _BODY + np.array(translations, dtype=np.intp)
-        self._zw = self._xy + 40  # rotation z, w: after translation (24) and rotation x, y
+        # Four bytes ahead of the message, so that the body's 8-aligned doubles are aligned
+        # in the buffer too and every field is one element of a typed view.
+        self._buffer = np.frombuffer(bytes(_BODY) + ENCAPSULATION + body, dtype=np.uint8).copy()
+        stamp = (2 * _BODY + np.array(stamps, dtype=np.intp)) // 4
+        self._sec, self._nanosec = stamp, stamp + 1
+        xy = (2 * _BODY + np.array(translations, dtype=np.intp)) // 8
+        self._x, self._y = xy, xy + 1
+        self._qz, self._qw = xy + 5, xy + 6  # after translation (3) and rotation x, y
+        self._i32 = self._buffer.view('<i4')
+        self._u32 = self._buffer.view('<u4')
+        self._f64 = self._buffer.view('<f8')
 
     def serialize(self, sec, nanosec, x, y, qz, qw):
         """Return the message's bytes for these values (arrays with one entry per transform)."""
-        count = len(self._stamp)
-        stamp = np.array([[sec, nanosec]], dtype='<u4').repeat(count, axis=0)
-        _scatter(self._view, self._stamp, stamp)
-        _scatter(self._view, self._xy, np.stack([x, y], axis=1).astype('<f8'))
-        _scatter(self._view, self._zw, np.stack([qz, qw], axis=1).astype('<f8'))
-        return bytes(self._bytes)
-
-
-def _scatter(view, offsets, rows):
-    """Write each row of rows (as bytes) at its offset in view."""
-    raw = np.ascontiguousarray(rows).view(np.uint8).reshape(len(offsets), -1)
-    view[offsets[:, None] + np.arange(raw.shape[1])] = raw
+        self._i32[self._sec] = sec
+        self._u32[self._nanosec] = nanosec
+        f64 = self._f64
+        f64[self._x] = x
+        f64[self._y] = y
+        f64[self._qz] = qz
+        f64[self._qw] = qw
+        return self._buffer[_BODY:].tobytes()

@@ -171,16 +171,18 @@ class Fleet:
         integrated = self.integrated_ns
         special = ((self.deadline_ns <= now_ns) | self.has_early | (integrated > now_ns)
                    | (integrated == NOT_YET))
-        for i in np.flatnonzero(special).tolist():
-            self.advance_robot_to(i, now_ns)
+        if special.any():
+            for i in np.flatnonzero(special).tolist():
+                self.advance_robot_to(i, now_ns)
         behind = integrated < now_ns
-        if behind.all():
+        # A robot at rest stays where it is: only the time it is integrated up to moves on.
+        moving = behind & self.moving()
+        if moving.all():
             self.advance((now_ns - integrated) / _NS)
-            integrated[:] = now_ns
-        elif behind.any():
-            index = np.flatnonzero(behind)
+        elif moving.any():
+            index = np.flatnonzero(moving)
             self.advance((now_ns - integrated[index]) / _NS, index)
-            integrated[index] = now_ns
+        integrated[behind] = now_ns
 
     def advance_robot_to(self, i, now_ns):
         """Integrate robot i up to now_ns, applying its early commands at their stamps."""
