@@ -231,7 +231,8 @@ def motions_run(run, robots, one_simulator):
                                     TIMEOUT_S + 4.0 * robots, poll=0.05)
             wall_s = max(m.exited_at for m in motions) - started if done else math.nan
         finally:
-            outputs = [run.stop(process) for process in motions + followers][:len(motions)]
+            outputs = [run.stop(process) for process in motions + followers]
+    outputs, simulators = outputs[:len(motions)], outputs[len(motions):]
     closings = [tuple(map(float, m.groups())) for out in outputs for m in DONE.finditer(out)]
     return {'rtf': min((s / w if w > 0 else math.inf for s, w, _, _ in closings),
                        default=math.nan),
@@ -239,7 +240,8 @@ def motions_run(run, robots, one_simulator):
             'worst_deg': max((deg for *_, deg in closings), default=math.nan),
             'failed': robots - len(closings), 'robots': robots, 'wall_s': wall_s,
             'exit_codes': [m.returncode for m in motions],
-            'logs': [core.tail(out, 30) for out in outputs] if len(closings) < robots else []}
+            'logs': ([core.tail(out, 30) for out in outputs + simulators]
+                     if len(closings) < robots else [])}
 
 
 def drive_text(run):
