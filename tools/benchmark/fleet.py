@@ -243,7 +243,7 @@ def fleet_cpu(run):
 @row('fleet')
 def fleet_real_time(run):
     windows, idle, busy, steps_s = in_real_time(run)
-    n = 64 if 64 in windows else max(windows)
+    n = max(windows)
     return Row(
         f'{n} robots at 50 Hz in real time, each commanded at 50 Hz: CPU',
         f'{busy[n]:.2f} of a core ({steps_s[n]:.1f} steps/s)', f'idle: {idle[n]:.2f}',
@@ -298,8 +298,10 @@ def fleet_per_robot(run):
         f"{message['published']} times, its CPU per publish; with no subscriber before any "
         "other process starts (as all robots' odometry but r0's), then with the load "
         f"subscribed ({message['heard']} heard). Idle ratio {ratio:.2f}x (to one subscriber: "
-        f'{ratio_reader:.2f}x); target on no subscriber.',
-        f'<= {core.TARGET_PER_ROBOT_RATIO:g}x per message', ratio <= core.TARGET_PER_ROBOT_RATIO,
+        f'{ratio_reader:.2f}x).',
+        '<= {:g} us idle, <= {:g} us commanded'.format(*core.TARGET_PER_ROBOT_US),
+        all(per_robot[key] * 1e6 <= target
+            for key, target in zip(('idle', 'commands'), core.TARGET_PER_ROBOT_US)),
         {'per_robot_s': per_robot, 'per_message_s': message, 'ratio': ratio,
          'ratio_one_subscriber': ratio_reader})
 
@@ -322,4 +324,6 @@ def fleet_motions(run):
         f'owning /clock (real_time_factor {run.rtf:g}, lockstep) once motion_fleet (one motion '
         'per robot namespace, on sim time) is up. Pairs: as in row 12'
         + (' (measured there, in this run)' if reused else '') + '. Factor and error as there.',
+        f'>= {core.TARGET_FLEET_MOTIONS_RTF:g}x (one simulator)',
+        not one['failed'] and one['rtf'] >= core.TARGET_FLEET_MOTIONS_RTF,
         data={'one_simulator': one, 'pairs': many, 'pairs_from_row_12': reused})
