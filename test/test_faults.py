@@ -31,6 +31,7 @@ import time
 
 from geometry_msgs.msg import Twist
 from geometry_msgs.msg import TwistStamped
+from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sim_diffdrive.harness import cpu_seconds
@@ -217,6 +218,26 @@ def test_a_cmd_vel_flood_is_cheap_the_last_command_wins_and_other_robots_are_unt
     assert during, 'no odometry while the flood lasted'
     assert {(pose_of(o), twist(o)) for o in calm.odoms} == {((0.0, 0.0, 0.0), (0.0, 0.0))}
     assert 'Traceback' not in sim.output()
+
+
+def test_a_command_is_not_pushed_out_by_the_many_sent_after_it(graph):
+    # Every publisher on cmd_vel shares the simulator's queue.  While the simulator is held
+    # up (here: not spun), one good command and then 200 refused ones arrive; the good one must
+    # still be handled.  With a queue of 10 the good one was pushed out and lost, so in lockstep
+    # a foreign flood could cost a participant its command (test_lockstep_faults saw it).
+    namespace = f'{_PREFIX}_queue'
+    graph.add(UnicycleSim(namespace=namespace, context=graph.context,
+                          cli_args=ros_args(namespace, KEEP_LAST_COMMAND)))
+    watcher = watch(graph, namespace)
+    node = graph.add(Node('queue_filler', namespace=namespace, context=graph.context))
+    pub = node.create_publisher(Twist, 'cmd_vel', 1000)
+    assert graph.spin_until(lambda: watcher.odom is not None and pub.get_subscription_count(),
+                            20.0)
+    pub.publish(command(0.3, 0.2))
+    for _ in range(200):
+        pub.publish(command(math.nan, 0.0))
+    assert pub.wait_for_all_acked(Duration(seconds=10.0))
+    assert graph.spin_until(lambda: twist(watcher.odom) == (0.3, 0.2), 5.0), twist(watcher.odom)
 
 
 def cpu_rate(pid, seconds):

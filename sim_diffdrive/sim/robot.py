@@ -47,6 +47,11 @@ from sim_diffdrive.sim.odom_tf import resolve_frame
 _NS = 1_000_000_000
 # No ground robot commands more than this [m/s or rad/s]; larger values are refused as garbage.
 COMMAND_LIMIT = 1e4
+# How many cmd_vel messages wait to be handled.  Every publisher on a robot's cmd_vel shares
+# this queue, so with 10 a teleop at 333 Hz pushed a lockstep participant's command out of it
+# while the simulator was held up for 30 ms on a busy machine: the command was lost, and the
+# clock went on without it after lockstep_timeout.  1000 holds 3 s of such a flood.
+CMD_VEL_DEPTH = 1000
 
 
 class Robot:
@@ -73,8 +78,8 @@ class Robot:
         self.path_pub = sim.create_publisher(Path, prefix + 'path', 1)
         self.cmd_type = TwistStamped if p.stamped else Twist
         sub = sim.create_subscription(self.cmd_type, prefix + 'cmd_vel',
-                                      self.on_stamped if p.stamped else self.on_twist, 10,
-                                      raw=True)
+                                      self.on_stamped if p.stamped else self.on_twist,
+                                      CMD_VEL_DEPTH, raw=True)
         self.cmd_topic = sub.topic_name
         sim.create_subscription(PoseWithCovarianceStamped, prefix + 'initialpose',
                                 self.on_initial_pose, 10)
