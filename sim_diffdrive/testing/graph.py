@@ -31,7 +31,7 @@ import random
 
 import rclpy
 from rclpy.context import Context
-from rclpy.executors import SingleThreadedExecutor
+from rclpy.experimental import EventsExecutor
 from rclpy.parameter import Parameter
 from sim_diffdrive.dds_profile import use_package_profile
 from sim_diffdrive.sim.node import UnicycleSim
@@ -68,10 +68,11 @@ class SimGraph(Lockstep):
 
     Without a context, the graph makes its own on an isolated domain and shuts it down on
     close(); ``context`` is what to build the nodes under test with.  executor_class may be
-    any callable taking context= (rclpy.experimental.EventsExecutor, for one).
+    any callable taking context=; the default is the EventsExecutor the executables spin
+    (a step costs less than half what it does under rclpy's SingleThreadedExecutor).
     """
 
-    def __init__(self, context=None, executor_class=SingleThreadedExecutor):
+    def __init__(self, context=None, executor_class=EventsExecutor):
         self._own_context = context is None
         use_package_profile()  # takes effect if no node of this process was made before
         if context is None:
