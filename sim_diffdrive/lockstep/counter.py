@@ -71,7 +71,6 @@ class MessageCounter:
         self.listeners = []
         self.sent = {}
         self.heard = {}
-        self.handled = 0  # messages handled on every counted topic together
         # The highest header stamp [ns] published / handled per topic: a foreign node's stale
         # or zero stamp never lowers what was heard.
         self.sent_stamp = {}
@@ -122,7 +121,6 @@ class MessageCounter:
     def _heard_callback(self, callback, topic, stamp_ns):
         def counted(*args):
             self.heard[topic] += 1
-            self.handled += 1
             if stamp_ns is not None:
                 stamp = stamp_ns(args[0])
                 if stamp > self.heard_stamp.get(topic, -1):

@@ -40,7 +40,9 @@ class Lockstep:
 
     Once the nodes have discovered each other, each message a node publishes must arrive at
     every in-graph subscription of its topic, and a step is settled when all that must arrive
-    has been handled (summed over the nodes' MessageCounters).
+    has been handled (per topic, summed over the nodes' MessageCounters).  What arrives beyond
+    that (sent before the nodes matched, or by a process outside the graph) is forgotten
+    before the next step, as the lockstep across processes does (handshake.py).
     """
 
     def __init__(self, executor):
@@ -50,8 +52,9 @@ class Lockstep:
         self.steps = 0
         self._counters = []
         self._fanout = []  # per counter: (topic, in-graph subscriptions) of what it publishes
-        self._base = (0, 0)  # (to arrive, handled) when the counters were last taken
-        self._carried = 0  # what was still on its way then
+        # Per topic, added to (to arrive - handled): what was on its way when the counters
+        # were last taken, less the counts then, less the surplus forgotten since.
+        self._offset = {}
         self._discovered = False
 
     def add(self, node):
@@ -165,6 +168,7 @@ class Lockstep:
         if not self.spin_until(lambda: not self.pending(), timeout):
             raise RuntimeError(f'messages sent at t={now_ns / _NS:.3f} s were not handled')
         for _ in range(steps):
+            self._forget_surplus()
             self.clock_owner.clock.step()
             self.steps += 1
             self._settle(self.clock_owner.now_ns(), timeout)
@@ -187,14 +191,23 @@ class Lockstep:
 
     def pending(self):
         """Return how many messages sent in the graph have not been handled yet."""
-        to_arrive, handled = self._totals()
-        return self._carried + (to_arrive - self._base[0]) - (handled - self._base[1])
+        return sum(owed for owed in self._owed().values() if owed > 0)
 
-    def _totals(self):
-        to_arrive = sum(count * counter.sent[topic]
-                        for counter, fanout in zip(self._counters, self._fanout)
-                        for topic, count in fanout)
-        return to_arrive, sum(counter.handled for counter in self._counters)
+    def _owed(self, offset=None):
+        """Per topic: messages to arrive at in-graph subscriptions less those handled."""
+        owed = dict(self._offset if offset is None else offset)
+        for counter, fanout in zip(self._counters, self._fanout):
+            for topic, count in fanout:
+                owed[topic] = owed.get(topic, 0) + count * counter.sent[topic]
+            for topic, heard in counter.heard.items():
+                owed[topic] = owed.get(topic, 0) - heard
+        return owed
+
+    def _forget_surplus(self):
+        """Forget messages handled beyond what the graph sent (they owe nothing)."""
+        for topic, owed in self._owed().items():
+            if owed < 0:
+                self._offset[topic] = self._offset.get(topic, 0) - owed
 
     def _graph_subscribers(self):
         """Return how many subscriptions the graph's nodes have, per topic."""
@@ -206,7 +219,7 @@ class Lockstep:
 
     def _instrument(self):
         """Take every node's counter and the graph's subscriptions afresh (nodes came or went)."""
-        carried = self.pending()
+        carried = {topic: owed for topic, owed in self._owed().items() if owed > 0}
         subscribers = self._graph_subscribers()
         self._counters = [MessageCounter.of(node, _clock_topic(node), fixed=True)
                           for node in self.nodes]
@@ -214,8 +227,9 @@ class Lockstep:
             counter.wrap_new()
         self._fanout = [[(topic, subscribers[topic]) for topic in counter.sent
                          if subscribers.get(topic)] for counter in self._counters]
-        self._base = self._totals()
-        self._carried = carried
+        counted = self._owed({})
+        self._offset = {topic: carried.get(topic, 0) - counted.get(topic, 0)
+                        for topic in set(carried) | set(counted)}
 
 
 def _clock_topic(node):
