@@ -21,6 +21,7 @@ listens to cmd_vel and odom without taking part.  Every motion must end at its a
 as exactly as in one process, and two runs must end bit-identical.
 """
 
+import collections
 import math
 import re
 import signal
@@ -29,6 +30,9 @@ from geometry_msgs.msg import Twist
 import pytest
 from rclpy.clock import Clock
 from rclpy.clock import ClockType
+from rclpy.qos import QoSProfile
+from rclpy.qos import ReliabilityPolicy
+from rosgraph_msgs.msg import Clock as ClockMsg
 from sim_diffdrive import harness
 from sim_diffdrive.harness import angle_error
 from sim_diffdrive.harness import pose_of
@@ -222,6 +226,10 @@ def test_a_foreign_publisher_does_not_stall_the_clock(graph, simulator):
 @pytest.mark.parametrize('simulator', [5.0], indirect=True)
 def test_a_clock_held_for_a_slow_participant_is_not_a_dead_simulator(graph, simulator):
     sim, probe, _ = simulator
+    sent = collections.Counter()  # /clock messages per step: the step and its re-sends
+    probe.create_subscription(ClockMsg, '/clock', lambda m: sent.update([m.clock.sec * 10 ** 9
+                                                                         + m.clock.nanosec]),
+                              QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE))
     staller = start_python(STALLER)
     try:
         assert graph.spin_until(lambda: 'staller' in ''.join(probe.get_node_names()), 20.0)
@@ -229,6 +237,9 @@ def test_a_clock_held_for_a_slow_participant_is_not_a_dead_simulator(graph, simu
     finally:
         staller_output = stop(staller)
     assert 'stalled' in staller_output, staller_output
+    # While held for 1.5 s the clock was re-sent at doubling intervals (10, 20, ... 320 ms:
+    # about ten times), not every 10 ms (150 times, which stalled 32 processes on 2 cores).
+    assert 4 <= max(sent.values()) <= 15, sent.most_common(3)
     assert code == 0, output  # not 'No odometry for 1.5 s mid-motion'
     assert_at(odom, CLOSED_LOOP_END, output)
     sim_output = stop(sim)

@@ -319,7 +319,14 @@ class StepLedger:
             return (f'{member.answer.node} did not answer the clock step at '
                     f'{now_ns / _NS:.3f} s (its last answer: {member.answer.step_ns / _NS:.3f} s)')
         if not due:
-            return f'{member.answer.node} has not heard the latest message on {topic}'
+            latest = self._latest_stamps().get(topic, 0)
+            heard = max(member.answer.heard_stamp.get(topic, -1),
+                        member.stamp_floor.get(topic, -1))
+            senders = sorted(m.answer.node for m in self.members.values()
+                             if m.answer.sent_stamp.get(topic) == latest)
+            return (f'{member.answer.node} has not heard the latest message on {topic} '
+                    f'(stamped {latest / _NS:.3f} s by {", ".join(senders)}; it heard up to '
+                    f'{heard / _NS:.3f} s)')
         return f'{member.answer.node} has not handled {due} message(s) on {topic}'
 
     def _latest_stamps(self):

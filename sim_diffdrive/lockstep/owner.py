@@ -22,13 +22,15 @@ last step is settled and ``real_time_factor`` allows it, and freewheels until th
 (as PX4's lockstep does).
 
 No single lost sample may stall or skew a run.  While the clock is held the owner re-sends the
-current ``/clock`` and the roster every ``RESEND_S`` (rclpy's TimeSource takes ``/clock``
-best-effort, so a lost step is otherwise never repaired), and a participant that sees the same
-clock again answers again.  The package's Fast DDS profile (fastdds_profile.xml) repairs lost
-commands, odometry and answers within tens of milliseconds.  A participant is given up only
-after ``lockstep_timeout`` wall seconds in which nothing at all was heard from it; one that
-keeps answering is waited for, and what it has not heard after that long is forgiven with a
-warning, never the participant.  The simulator never gives itself up.
+current ``/clock`` and the roster (rclpy's TimeSource takes ``/clock`` best-effort, so a lost
+step is otherwise never repaired), and a participant that sees the same clock again answers
+again.  The first re-send waits RESEND_S, or twice the time steps lately took to settle when
+that is longer; each next one waits twice as long, up to RESEND_MAX_S.  The package's Fast DDS
+profile (fastdds_profile.xml) repairs lost commands, odometry and answers within tens of
+milliseconds.  A participant is given up only after ``lockstep_timeout`` wall seconds in which
+nothing at all was heard from it; one that keeps answering is waited for, and what it has not
+heard after that long is forgiven with a warning, never the participant.  The simulator never
+gives itself up.
 """
 
 import time
@@ -45,10 +47,16 @@ from std_msgs.msg import String
 _NS = 1_000_000_000
 # Freewheeling catches up at most this many steps per timer call.
 _MAX_CATCH_UP = 20
-# While the clock is held, /clock and the roster are re-sent this often [s, wall]: a participant
-# that lost the step's /clock gets it again, and takes the roster for a sign that the
-# simulator is alive (its odometry is late because time stands still).
+# While the clock is held, /clock and the roster are re-sent [s, wall]: a participant that lost
+# the step's /clock gets it again, and takes the roster for a sign that the simulator is alive
+# (its odometry is late because time stands still).  First after RESEND_S, then twice as long
+# each time up to RESEND_MAX_S: every re-send makes every participant answer again, and at a
+# fixed 10 ms, 31 participants on two busy cores spent their time answering re-sends, so the
+# steps took longer than 10 ms, so every step was re-sent: the run crawled and stalled.
 RESEND_S = 0.01
+RESEND_MAX_S = 0.32
+# Weight of the newest step in the moving average of how long steps take to settle.
+_SETTLE_WEIGHT = 0.1
 
 
 class LockstepOwner:
@@ -72,6 +80,8 @@ class LockstepOwner:
         self._announced = set()
         self._roster_version = -1
         self._resent_wall = 0.0
+        self._resend_s = RESEND_S  # the wait before the next re-send of this step
+        self._settle_s = 0.0  # how long steps take to settle lately [s, wall; moving average]
         self._warned_wall = 0.0
 
     def start(self):
@@ -94,6 +104,9 @@ class LockstepOwner:
         """Start counting answers for the step to step_ns (the simulator is about to take it)."""
         self.ledger.next_step()
         self._waiting = None
+        # Not before a step had twice its usual time to settle: a graph of many processes on
+        # a busy machine takes longer than RESEND_S for every step, lost sample or not.
+        self._resend_s = min(max(RESEND_S, 2.0 * self._settle_s), RESEND_MAX_S)
         self._own_answer.step_ns = step_ns
 
     def try_step(self):
@@ -121,6 +134,7 @@ class LockstepOwner:
             if waited <= sim.params.lockstep_timeout or not self._give_up(waiting):
                 return
         if waited >= clock.budget_s:
+            self._settle_s += _SETTLE_WEIGHT * (waited - self._settle_s)
             clock.step()
             self._keep_schedule(wall, 1)
 
@@ -165,12 +179,13 @@ class LockstepOwner:
         now = time.monotonic()
         # Only once the step has been held that long: a step that settles in time (nearly all)
         # sends /clock once.
-        resend = waiting and now - max(self.clock.wall, self._resent_wall) >= RESEND_S
+        resend = waiting and now - max(self.clock.wall, self._resent_wall) >= self._resend_s
         if ledger.version == self._roster_version and not resend:
             return
         if resend:
             self.clock.repeat()
             self._resent_wall = now
+            self._resend_s = min(2.0 * self._resend_s, RESEND_MAX_S)
         now_ns = self.sim.now_ns()
         roster = ledger.roster(self.sim.get_fully_qualified_name(), now_ns,
                                [ledger.describe(reason, now_ns) for reason in waiting])
