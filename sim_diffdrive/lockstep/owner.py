@@ -24,8 +24,8 @@ last step is settled and ``real_time_factor`` allows it, and freewheels until th
 No single lost sample may stall or skew a run.  While the clock is held the owner re-sends the
 current ``/clock`` and the roster (rclpy's TimeSource takes ``/clock`` best-effort, so a lost
 step is otherwise never repaired), and a participant that sees the same clock again answers
-again.  The first re-send waits RESEND_S, or twice the time steps lately took to settle when
-that is longer; each next one waits twice as long, up to RESEND_MAX_S.  The package's Fast DDS
+again.  The first re-send waits RESEND_S, or twice the recent time between steps when that
+is longer; each next one waits twice as long, up to RESEND_MAX_S.  The package's Fast DDS
 profile (fastdds_profile.xml) repairs lost commands, odometry and answers within tens of
 milliseconds.  A participant is given up only after ``lockstep_timeout`` wall seconds in which
 nothing at all was heard from it; one that keeps answering is waited for, and what it has not
@@ -55,8 +55,8 @@ _MAX_CATCH_UP = 20
 # steps took longer than 10 ms, so every step was re-sent: the run crawled and stalled.
 RESEND_S = 0.01
 RESEND_MAX_S = 0.32
-# Weight of the newest step in the moving average of how long steps take to settle.
-_SETTLE_WEIGHT = 0.1
+# Weight of the newest step in the moving average of the wall time between steps.
+_STEP_WEIGHT = 0.1
 
 
 class LockstepOwner:
@@ -81,7 +81,7 @@ class LockstepOwner:
         self._roster_version = -1
         self._resent_wall = 0.0
         self._resend_s = RESEND_S  # the wait before the next re-send of this step
-        self._settle_s = 0.0  # how long steps take to settle lately [s, wall; moving average]
+        self._step_s = 0.0  # recent wall time between steps [s; moving average]
         self._warned_wall = 0.0
 
     def start(self):
@@ -104,9 +104,9 @@ class LockstepOwner:
         """Start counting answers for the step to step_ns (the simulator is about to take it)."""
         self.ledger.next_step()
         self._waiting = None
-        # Not before a step had twice its usual time to settle: a graph of many processes on
-        # a busy machine takes longer than RESEND_S for every step, lost sample or not.
-        self._resend_s = min(max(RESEND_S, 2.0 * self._settle_s), RESEND_MAX_S)
+        # Not before a step had twice its usual time: a graph of many processes on a busy
+        # machine takes longer than RESEND_S for every step, lost sample or not.
+        self._resend_s = min(max(RESEND_S, 2.0 * self._step_s), RESEND_MAX_S)
         self._own_answer.step_ns = step_ns
 
     def try_step(self):
@@ -134,7 +134,7 @@ class LockstepOwner:
             if waited <= sim.params.lockstep_timeout or not self._give_up(waiting):
                 return
         if waited >= clock.budget_s:
-            self._settle_s += _SETTLE_WEIGHT * (waited - self._settle_s)
+            self._step_s += _STEP_WEIGHT * (waited - self._step_s)
             clock.step()
             self._keep_schedule(wall, 1)
 

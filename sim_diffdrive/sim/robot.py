@@ -48,9 +48,9 @@ _NS = 1_000_000_000
 # No ground robot commands more than this [m/s or rad/s]; larger values are refused as garbage.
 COMMAND_LIMIT = 1e4
 # How many cmd_vel messages wait to be handled.  Every publisher on a robot's cmd_vel shares
-# this queue, so with 10 a teleop at 333 Hz pushed a lockstep participant's command out of it
-# while the simulator was held up for 30 ms on a busy machine: the command was lost, and the
-# clock went on without it after lockstep_timeout.  1000 holds 3 s of such a flood.
+# this queue: with 10, ten messages from anyone arriving while the simulator was held up pushed
+# out a command before it, and a lockstep participant's command could be lost to a teleop
+# (test_faults.py).  1000 holds 3 s of a teleop at 333 Hz.
 CMD_VEL_DEPTH = 1000
 
 
