@@ -227,8 +227,10 @@ def test_a_foreign_publisher_does_not_stall_the_clock(graph, simulator):
 def test_a_clock_held_for_a_slow_participant_is_not_a_dead_simulator(graph, simulator):
     sim, probe, _ = simulator
     sent = collections.Counter()  # /clock messages per step: the step and its re-sends
-    probe.create_subscription(ClockMsg, '/clock', lambda m: sent.update([m.clock.sec * 10 ** 9
-                                                                         + m.clock.nanosec]),
+
+    def count(msg):
+        sent[(msg.clock.sec, msg.clock.nanosec)] += 1
+    probe.create_subscription(ClockMsg, '/clock', count,
                               QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE))
     staller = start_python(STALLER)
     try:
