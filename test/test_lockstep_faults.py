@@ -43,6 +43,9 @@ from sim_diffdrive.lockstep.participant import take_part
 
 FACTOR = 1000.0
 ROTATE = ('angular_speed_deg:=90.0', 'angle_deg:=90.0', 'clockwise:=false')
+# A whole turn (200 steps), so that a flood at 1 kHz overlaps it with over a hundred messages
+# however fast the handshake (a quarter turn took 0.1 s wall, 34 messages at 3 ms apart).
+FLOODED_ROTATE = ('angular_speed_deg:=90.0', 'angle_deg:=360.0', 'clockwise:=false')
 # On wall time: the robot turns while the commands' wall times say, so a slower turn keeps a
 # loaded machine's scheduling delays (several ms) well inside 0.5 deg.
 WALL_ROTATE = ('angular_speed_deg:=30.0', 'angle_deg:=90.0', 'clockwise:=false')
@@ -80,7 +83,7 @@ def test_foreign_stale_and_zero_stamps_never_stall_or_drop_anyone(graph):
 
     def publish_stale():
         # All-zero commands from a node that does not take part, stamped 0 or 1 s ago, every
-        # few milliseconds: some land between a motion's command and the end of its step.
+        # millisecond: some land between a motion's command and the end of its step.
         msg = TwistStamped()
         stamp_ns = 0 if len(stale) % 2 else max(0, round((stamp_s(probe.odom) - 1.0) * 1e9))
         msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(stamp_ns, 10 ** 9)
@@ -89,13 +92,13 @@ def test_foreign_stale_and_zero_stamps_never_stall_or_drop_anyone(graph):
 
     try:
         assert graph.spin_until(lambda: probe.odom is not None, 20.0), sim.describe()
-        timer = probe.create_timer(0.003, publish_stale,
+        timer = probe.create_timer(0.001, publish_stale,
                                    clock=Clock(clock_type=ClockType.STEADY_TIME))
         # The zero commands stamped 0 do reach the robot (the latest command wins), so this
         # turn falls short; what matters is that it ran to its end without a stall.
         code, output = finish(graph, start('rotate_robot', 'use_sim_time:=true',
-                                           'stamped:=true', *ROTATE))
-        assert code == 0 and 'Done in 1.000 s' in output, output
+                                           'stamped:=true', *FLOODED_ROTATE))
+        assert code == 0 and 'Done in 4.000 s' in output, output
         timer.cancel()
         # The simulator is still in its own lockstep: the next turn is exact.
         code, output = finish(graph, start('rotate_robot', 'use_sim_time:=true',
