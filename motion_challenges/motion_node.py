@@ -49,6 +49,7 @@ from sim_diffdrive.parameters import declare
 from sim_diffdrive.parameters import Spec
 from sim_diffdrive.runtime import EXIT_FAILED
 from sim_diffdrive.runtime import EXIT_OK
+from sim_diffdrive.throttle import Throttle
 
 _NS = 1_000_000_000
 # How long to wait for the odometry that shows where the robot came to rest: this many control
@@ -140,6 +141,8 @@ class MotionNode(Node):
             Odometry, 'odom', self._on_odom, 50).topic_name
         self.odom = None
         self._odom_wall = None
+        self._progress_log = Throttle(1.0)  # a progress line a second
+        self._waiting_log = Throttle(2.0)
         self.run_odoms = []  # the OdomPose of each odometry while running or settling
         self.sent_commands = []  # for plot_file: (time_ns, linear, angular) of each command
         self.start_odom = None
@@ -243,7 +246,9 @@ class MotionNode(Node):
         return self.commands.integral(self.odom.stamp_ns, now_ns)
 
     def progress(self, text):
-        self.get_logger().info(text, throttle_duration_sec=1.0)
+        """Log text, called each tick: a line a second at most (sim_diffdrive/throttle.py)."""
+        if self._progress_log.allows():
+            self.get_logger().info(text)
 
     # -- callbacks ---------------------------------------------------------------------------
 
@@ -349,8 +354,8 @@ class MotionNode(Node):
         if waited > self.params.start_timeout:
             self.finish(EXIT_FAILED, f'Gave up after {waited:.1f} s waiting for {missing}; '
                                      'is the robot (or unicycle_sim) running? Nothing moved.')
-        else:
-            self.get_logger().info(f'Waiting for {missing} ...', throttle_duration_sec=2.0)
+        elif self._waiting_log.allows():
+            self.get_logger().info(f'Waiting for {missing} ...')
 
     def _on_tick(self):
         now_ns = self.now_ns()

@@ -20,13 +20,15 @@ Stress the simulator longer than a test can: a cmd_vel flood into ``unicycle_sim
 odometry's rate idle and during the flood, the simulator's CPU and memory (RSS) over time and
 whether the last command won; exit 0 if odometry kept its rate within 10 %, RSS grew less
 than 1 MB after the first second and the last command won.  ``python tools/stress.py flood
---rate R --seconds S [--final V W] [--ros-args ...]`` is the publisher (test_faults uses it):
-R Hz (0: flat out) of 100 pre-serialized Twists once a subscriber is there, then --final,
-and a JSON line of what it sent.  On a ROS domain of its own, discovery on this machine only.
+--rate R --seconds S [--final V W] [--refused] [--ros-args ...]`` is the publisher (test_faults
+uses it): R Hz (0: flat out) of 100 pre-serialized Twists (with --refused every other one has
+a NaN speed, which the simulator refuses) once a subscriber is there, then --final, and a JSON
+line of what it sent.  On a ROS domain of its own, discovery on this machine only.
 """
 
 import argparse
 import json
+import math
 import sys
 import time
 
@@ -39,6 +41,7 @@ def flood(argv):  # the publisher process (see the module's docstring)
     parser.add_argument('--rate', type=float, default=10000.0, help='Hz; 0 = flat out')
     parser.add_argument('--seconds', type=float, default=10.0)
     parser.add_argument('--final', type=float, nargs=2, metavar=('V', 'W'))
+    parser.add_argument('--refused', action='store_true', help='every other Twist has a NaN')
     args, ros_args = parser.parse_known_args(argv)
     from geometry_msgs.msg import Twist
     import rclpy
@@ -54,7 +57,8 @@ def flood(argv):  # the publisher process (see the module's docstring)
             print(json.dumps({'error': 'no cmd_vel subscriber'}), flush=True)
             return 1
         time.sleep(0.01)
-    payloads = [serialize_message(twist(0.01 * k, -0.01 * k)) for k in range(100)]
+    payloads = [serialize_message(twist(
+        math.nan if args.refused and k % 2 else 0.01 * k, -0.01 * k)) for k in range(100)]
     sent, start_wall, start = 0, time.time(), time.monotonic()
     while time.monotonic() < start + args.seconds:
         ahead = start + sent / args.rate - time.monotonic() if args.rate else 0.0

@@ -42,6 +42,7 @@ from sim_diffdrive.lockstep.handshake import roster_topic
 from sim_diffdrive.lockstep.handshake import StepLedger
 from sim_diffdrive.lockstep.participant import ANSWER_QOS
 from sim_diffdrive.lockstep.participant import ROSTER_QOS
+from sim_diffdrive.throttle import Throttle
 from std_msgs.msg import String
 
 _NS = 1_000_000_000
@@ -74,6 +75,7 @@ class LockstepOwner:
         self.clock = clock
         self._owner_id = sim.get_fully_qualified_name() + '#owner'
         self.ledger = StepLedger(self._owner_id)
+        self._bad_answers = Throttle(5.0)
         self._answer_topic = answer_topic(clock.topic)
         sim.create_subscription(String, self._answer_topic, self._on_answer, ANSWER_QOS)
         self._waiting = None  # what the current step waits for; None: to be worked out
@@ -156,8 +158,9 @@ class LockstepOwner:
         try:
             answer = Answer.decode(msg.data)
         except ValueError as error:
-            self.sim.get_logger().warning(
-                f'Ignoring a message on {self._answer_topic}: {error}', throttle_duration_sec=5.0)
+            if self._bad_answers.allows():
+                self.sim.get_logger().warning(
+                    f'Ignoring a message on {self._answer_topic}: {error}')
             return
         now_ns = self.sim.now_ns()
         if self.ledger.receive(answer, now_ns, time.monotonic()) == 'left':

@@ -43,6 +43,7 @@ from sim_diffdrive.cdr import read_twist_stamped
 from sim_diffdrive.cdr import UnsupportedEncoding
 from sim_diffdrive.sim.odom_tf import namespaced_frame
 from sim_diffdrive.sim.odom_tf import resolve_frame
+from sim_diffdrive.throttle import Throttle
 
 _NS = 1_000_000_000
 # No ground robot commands more than this [m/s or rad/s]; larger values are refused as garbage.
@@ -69,6 +70,7 @@ class Robot:
         self.name = name
         self.model = sim.fleet.robots[index]
         self._warned_publishers = False
+        self._refusals = Throttle(1.0)  # one warning a second per kind of refused command
         prefix = f'{name}/' if name else ''
         self.label = f'{name}: ' if name else ''
         p = sim.params
@@ -139,11 +141,12 @@ class Robot:
         age_ns = sim.now_ns() - stamp_ns
         limit_ns = round(sim.params.max_command_age * _NS)
         if stamp_ns != 0 and limit_ns > 0 and abs(age_ns) > limit_ns:
-            when = 'old' if age_ns > 0 else 'in the future'
-            sim.get_logger().warning(
-                f'{self.label}Refusing cmd_vel stamped {abs(age_ns) / _NS:.3f} s {when} (more '
-                f'than max_command_age {sim.params.max_command_age:g} s); keeping the last '
-                'command', throttle_duration_sec=1.0)
+            if self._refusals.allows('stamp'):
+                when = 'old' if age_ns > 0 else 'in the future'
+                sim.get_logger().warning(
+                    f'{self.label}Refusing cmd_vel stamped {abs(age_ns) / _NS:.3f} s {when} '
+                    f'(more than max_command_age {sim.params.max_command_age:g} s); keeping '
+                    'the last command')
             return
         self.command(linear, angular, stamp_ns)
 
@@ -164,10 +167,10 @@ class Robot:
             except UnsupportedEncoding:
                 return fields(deserialize_message(data, self.cmd_type))
         except (struct.error, RuntimeError, ValueError) as error:
-            self.sim.get_logger().warning(
-                f'{self.label}Refusing cmd_vel that does not decode as '
-                f'{self.cmd_type.__name__} ({error}); keeping the last command',
-                throttle_duration_sec=1.0)
+            if self._refusals.allows('decode'):
+                self.sim.get_logger().warning(
+                    f'{self.label}Refusing cmd_vel that does not decode as '
+                    f'{self.cmd_type.__name__} ({error}); keeping the last command')
             return None
 
     def command(self, linear, angular, stamp_ns=None):
@@ -175,10 +178,11 @@ class Robot:
         sim = self.sim
         if not (abs(linear) <= COMMAND_LIMIT and abs(angular) <= COMMAND_LIMIT):
             # NaN fails both comparisons, so it is refused here too.
-            sim.get_logger().warning(
-                f'{self.label}Refusing cmd_vel with a non-finite or absurd value (linear.x='
-                f'{linear}, angular.z={angular}; the limit is {COMMAND_LIMIT:g}); keeping the '
-                'last command', throttle_duration_sec=1.0)
+            if self._refusals.allows('value'):
+                sim.get_logger().warning(
+                    f'{self.label}Refusing cmd_vel with a non-finite or absurd value (linear.x='
+                    f'{linear}, angular.z={angular}; the limit is {COMMAND_LIMIT:g}); keeping '
+                    'the last command')
             return
         now_ns = sim.now_ns()
         fleet = self.fleet
