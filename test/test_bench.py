@@ -37,7 +37,7 @@ ROW_KEYS = (
     'rotate_timed', 'rotate_odom', 'out_and_back_closure', 'circle_closure',
     'integration_error', 'rtf_in_process', 'rtf_processes', 'latency', 'cpu_idle',
     'cpu_commands', 'scaling_one_process', 'scaling_processes', 'fleet_cpu', 'fleet_real_time',
-    'fleet_rtf', 'fleet_per_robot', 'fleet_motions',
+    'fleet_rtf', 'fleet_per_robot', 'fleet_motions', 'fleet_idle_large',
 )
 
 # The original's speed: 60 deg/s converted with 3.14/180 [rad/s].
@@ -159,7 +159,7 @@ def test_quick_run_writes_every_row(tmp_path):
     assert rows['cpu_idle']['idle_percent'] >= 0.0
     assert tuple(rows['scaling_one_process']['rtf']) == tuple(map(str, sizes.robots))
     assert tuple(rows['scaling_processes']['rtf']) == tuple(map(str, sizes.robots_processes))
-    # Many robots in one simulator (rows 13-17): every count measured, sane, motions exact.
+    # Many robots in one simulator (rows 13-18): every count measured, sane, motions exact.
     fleet = rows['fleet_cpu']
     for key in ('idle_cores', 'commands_cores'):
         assert tuple(fleet[key]) == tuple(map(str, sizes.fleet_robots)), key
@@ -184,5 +184,8 @@ def test_quick_run_writes_every_row(tmp_path):
     assert motions['one_simulator']['worst_mm'] == 0.0
     assert motions['one_simulator']['worst_deg'] == 0.0
     assert motions['one_simulator']['exit_codes'] == [0]
+    large = rows['fleet_idle_large']
+    assert large['robots'] == sizes.fleet_idle_robots
+    assert 0.0 < large['cores'] < 2.0 and large['steps_per_s'] > 0.0
     # The table is printed too.
     assert 'this project' in result.stdout and 'reference' in result.stdout

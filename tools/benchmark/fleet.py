@@ -12,7 +12,7 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""Rows 13-17: many robots in one ``unicycle_sim`` process (its ``robots`` parameter)."""
+"""Rows 13-18: many robots in one ``unicycle_sim`` process (its ``robots`` parameter)."""
 
 import math
 import os
@@ -327,3 +327,28 @@ def fleet_motions(run):
         f'>= {core.TARGET_FLEET_MOTIONS_RTF:g}x (one simulator)',
         not one['failed'] and one['rtf'] >= core.TARGET_FLEET_MOTIONS_RTF,
         data={'one_simulator': one, 'pairs': many, 'pairs_from_row_12': reused})
+
+
+@row('fleet')
+def fleet_idle_large(run):
+    n = run.sizes.fleet_idle_robots
+    with harness.SimGraph(executor_class=EventsExecutor) as graph:
+        (sim, _, first, _), = start_sims(run, graph, [n], False).values()
+        try:
+            # Making a thousand robots' publishers and subscriptions takes a few seconds.
+            if not graph.spin_until(lambda: len(first.odoms) > 2, 120.0, poll=0.005):
+                raise RuntimeError(f'no odometry from unicycle_sim:\n{run.stop(sim)}')
+            graph.spin_for(run.sizes.fleet_settle_s)
+            idle = window(graph, sim.pid, first, run.sizes.fleet_window_s)
+        finally:
+            run.stop(sim)
+    cores, steps_s = idle['cpu_s'] / idle['wall_s'], idle['steps'] / idle['wall_s']
+    return Row(
+        f'{n} robots idle at 50 Hz in real time: CPU', f'{cores:.2f} of a core '
+        f'({steps_s:.1f} steps/s)', f'a simulator process per robot: {n} processes',
+        f'unicycle_sim with robots r0..r{n - 1} on wall time, none commanded: odometry of every '
+        f'robot and /tf each step; CPU of its process over {run.sizes.fleet_window_s:g} s '
+        "(wall) and the steps r0's odometry shows. Met within one core at 50 steps/s.",
+        f'<= {core.TARGET_FLEET_CORES:g} core, 50 steps/s',
+        cores <= core.TARGET_FLEET_CORES and steps_s >= 0.95 * RATE_HZ,
+        {'robots': n, 'cores': cores, 'steps_per_s': steps_s, 'window': idle})
