@@ -225,3 +225,17 @@ def test_a_live_cmd_vel_timeout_counts_for_every_robot_from_its_own_last_command
                         and pose_of(o)[0] > 0.5).header.stamp.nanosec
              for name in ('early', 'late')}
     assert stops == {'early': 20_000_000, 'late': 220_000_000}  # at 1.02 s and 1.22 s
+
+
+def test_two_controllers_on_one_robot_of_a_fleet_are_warned_about_within_a_second(
+        fast_graph, capfd):
+    # The simulator asks the graph about each robot's cmd_vel once a simulated second, a few
+    # robots a step (all at once, a thousand robots held one step up for over 100 ms).
+    graph = fast_graph
+    graph.sim(robots=ROBOTS[:3])
+    for name in ('controller_a', 'controller_b'):
+        graph.probe(name, namespace='/robot2')  # each publishes on robot2/cmd_vel
+    graph.step_for(1.1)
+    log = capfd.readouterr().err
+    assert log.count('nodes publish on') == 1, log
+    assert '2 nodes publish on /robot2/cmd_vel' in log, log
