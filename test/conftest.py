@@ -55,9 +55,7 @@ def ros_context():
 
 @pytest.fixture
 def graph(ros_context):
-    # The SingleThreadedExecutor: with the EventsExecutor (about 15 % faster) a command sent
-    # before the graph's first step could arrive after discovery, be counted as handled but
-    # not as sent, and keep the step from ever settling (test_recorder, 1 run in 3).
+    # SimGraph's default executor, the EventsExecutor the executables spin.
     g = SimGraph(ros_context)
     try:
         yield g
