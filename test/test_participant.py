@@ -67,6 +67,26 @@ def test_a_timer_runs_once_per_clock_time_however_often_its_event_comes(node):
     assert timer.time_until_next_call() == 100_000_000
 
 
+def test_a_timer_event_that_comes_between_two_due_times_runs_nothing(node):
+    # A duplicate event that waited in a loaded EventsExecutor's queue while the clock moved
+    # on: run, it sent a motion's command after the node had answered the step.
+    ticks = []
+    timer = node.create_timer(0.1, lambda: ticks.append(node.get_clock().now().nanoseconds))
+    take_part(node)
+    clock = node.get_clock()
+    clock.set_ros_time_override(Time(seconds=5))
+    timer.callback()
+    clock.set_ros_time_override(Time(nanoseconds=5_040_000_000))
+    timer.callback()  # the stale event
+    assert ticks == [5_000_000_000]
+    # Still due a period after its last run, not a period after the stale event.
+    assert timer.time_until_next_call() == 60_000_000
+    clock.set_ros_time_override(Time(nanoseconds=5_100_000_000))
+    timer.callback()
+    assert ticks == [5_000_000_000, 5_100_000_000]
+    assert timer.timer_period_ns == 100_000_000
+
+
 def test_take_part_needs_sim_time(ros_context):
     node = Node('wall', context=ros_context)
     try:

@@ -138,19 +138,24 @@ class MessageCounter:
             return counted
         fired_at = [None]
 
-        def once_per_clock_time(*args):
+        def on_schedule(*args):
             # rclpy's EventsExecutor can queue a timer's event again before running the first
-            # (rclcpp #2771 has the same bug), most often on a loaded machine: the callback then
-            # runs several times at one simulated time, and each run moves the timer a period
-            # further, so later periods are skipped.  Run it once per time; restart the period.
+            # (rclcpp #2771 has the same bug), most often on a loaded machine, and each run
+            # moves the timer a period further.  A second event at the same simulated time
+            # would run the callback twice; one that waited in the queue until the clock had
+            # moved on ran it between two due times, after this node had answered the step (a
+            # motion's first command then landed a step late: 1 run in 30 beside three busy
+            # loops).  Run it only when due; put the schedule back after any other event.
             now_ns = timer.clock.now().nanoseconds
-            if fired_at[0] == now_ns:
-                timer.reset()
-                return
+            if fired_at[0] is not None:
+                due_ns = fired_at[0] + timer.timer_period_ns
+                if now_ns < due_ns:
+                    _next_call_at(timer, now_ns, due_ns)
+                    return
             fired_at[0] = now_ns
             callback(*args)
             self._after()
-        return once_per_clock_time
+        return on_schedule
 
     def _counted_publish(self, publish, topic, stamp_ns):
         def counted(msg):
@@ -161,6 +166,14 @@ class MessageCounter:
                     self.sent_stamp[topic] = stamp
             publish(msg)
         return counted
+
+
+def _next_call_at(timer, now_ns, due_ns):
+    """Make timer's next call due_ns (> now_ns) and keep its period (rclpy has no such call)."""
+    period_ns = timer.timer_period_ns
+    timer.timer_period_ns = due_ns - now_ns
+    timer.reset()  # the next call one (temporary) period from now
+    timer.timer_period_ns = period_ns
 
 
 def _stamp_reader(msg_type):
