@@ -87,6 +87,19 @@ def test_a_timer_event_that_comes_between_two_due_times_runs_nothing(node):
     assert timer.timer_period_ns == 100_000_000
 
 
+def test_a_timer_runs_at_once_after_the_clock_went_back(node):
+    # A replayed or restarted /clock: the timer's schedule starts afresh, not 90 s from now.
+    ticks = []
+    timer = node.create_timer(0.1, lambda: ticks.append(node.get_clock().now().nanoseconds))
+    take_part(node)
+    clock = node.get_clock()
+    clock.set_ros_time_override(Time(seconds=100))
+    timer.callback()
+    clock.set_ros_time_override(Time(seconds=10))
+    timer.callback()
+    assert ticks == [100_000_000_000, 10_000_000_000]
+
+
 def test_take_part_needs_sim_time(ros_context):
     node = Node('wall', context=ros_context)
     try:

@@ -145,9 +145,10 @@ class MessageCounter:
             # would run the callback twice; one that waited in the queue until the clock had
             # moved on ran it between two due times, after this node had answered the step (a
             # motion's first command then landed a step late: 1 run in 30 beside three busy
-            # loops).  Run it only when due; put the schedule back after any other event.
+            # loops).  Run it only when due; put the schedule back after any other event.  (A
+            # clock that went back, replayed or restarted, starts the schedule afresh.)
             now_ns = timer.clock.now().nanoseconds
-            if fired_at[0] is not None:
+            if fired_at[0] is not None and fired_at[0] <= now_ns:
                 due_ns = fired_at[0] + timer.timer_period_ns
                 if now_ns < due_ns:
                     _next_call_at(timer, now_ns, due_ns)
