@@ -55,13 +55,22 @@ def test_counts_what_the_node_publishes_and_handles(node):
     assert counter.heard_stamp == {'/odom': 3_000_000_000}
 
 
-def test_a_timer_runs_once_per_clock_time_however_often_its_event_comes(node):
+def tick_at(node):
+    """Give node a 0.1 s timer on sim time and take part; return (deliver, ticks, timer)."""
     ticks = []
     timer = node.create_timer(0.1, lambda: ticks.append(node.get_clock().now().nanoseconds))
     take_part(node)
-    node.get_clock().set_ros_time_override(Time(seconds=5))
-    for _ in range(3):  # what a loaded EventsExecutor can deliver for one period
+
+    def deliver(t_ns):  # the clock at t_ns, then an event of the timer as the executor runs it
+        node.get_clock().set_ros_time_override(Time(nanoseconds=t_ns))
         timer.callback()
+    return deliver, ticks, timer
+
+
+def test_a_timer_runs_once_per_clock_time_however_often_its_event_comes(node):
+    deliver, ticks, timer = tick_at(node)
+    for _ in range(3):  # what a loaded EventsExecutor can deliver for one period
+        deliver(5_000_000_000)
     assert ticks == [5_000_000_000]
     # The period starts again at this time, not three periods later.
     assert timer.time_until_next_call() == 100_000_000
@@ -70,33 +79,22 @@ def test_a_timer_runs_once_per_clock_time_however_often_its_event_comes(node):
 def test_a_timer_event_that_comes_between_two_due_times_runs_nothing(node):
     # A duplicate event that waited in a loaded EventsExecutor's queue while the clock moved
     # on: run, it sent a motion's command after the node had answered the step.
-    ticks = []
-    timer = node.create_timer(0.1, lambda: ticks.append(node.get_clock().now().nanoseconds))
-    take_part(node)
-    clock = node.get_clock()
-    clock.set_ros_time_override(Time(seconds=5))
-    timer.callback()
-    clock.set_ros_time_override(Time(nanoseconds=5_040_000_000))
-    timer.callback()  # the stale event
+    deliver, ticks, timer = tick_at(node)
+    deliver(5_000_000_000)
+    deliver(5_040_000_000)  # the stale event
     assert ticks == [5_000_000_000]
     # Still due a period after its last run, not a period after the stale event.
     assert timer.time_until_next_call() == 60_000_000
-    clock.set_ros_time_override(Time(nanoseconds=5_100_000_000))
-    timer.callback()
+    deliver(5_100_000_000)
     assert ticks == [5_000_000_000, 5_100_000_000]
     assert timer.timer_period_ns == 100_000_000
 
 
 def test_a_timer_runs_at_once_after_the_clock_went_back(node):
     # A replayed or restarted /clock: the timer's schedule starts afresh, not 90 s from now.
-    ticks = []
-    timer = node.create_timer(0.1, lambda: ticks.append(node.get_clock().now().nanoseconds))
-    take_part(node)
-    clock = node.get_clock()
-    clock.set_ros_time_override(Time(seconds=100))
-    timer.callback()
-    clock.set_ros_time_override(Time(seconds=10))
-    timer.callback()
+    deliver, ticks, _ = tick_at(node)
+    deliver(100_000_000_000)
+    deliver(10_000_000_000)
     assert ticks == [100_000_000_000, 10_000_000_000]
 
 
