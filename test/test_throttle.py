@@ -14,14 +14,12 @@
 
 """sim_diffdrive.throttle: a log line per key and period, decided on the monotonic clock."""
 
-from sim_diffdrive import throttle
 from sim_diffdrive.throttle import Throttle
 
 
-def test_the_first_line_goes_out_then_one_per_period_and_key(monkeypatch):
+def test_the_first_line_goes_out_then_one_per_period_and_key():
     now = [100.0]
-    monkeypatch.setattr(throttle.time, 'monotonic', lambda: now[0])
-    lines = Throttle(1.0)
+    lines = Throttle(1.0, clock=lambda: now[0])
     assert lines.allows('stamp')
     assert not lines.allows('stamp')
     assert lines.allows('value')  # another key has its own period
@@ -33,10 +31,9 @@ def test_the_first_line_goes_out_then_one_per_period_and_key(monkeypatch):
     assert lines.allows()  # no key: a key of its own
 
 
-def test_a_refused_line_does_not_push_the_next_one_back(monkeypatch):
+def test_a_refused_line_does_not_push_the_next_one_back():
     now = [0.0]
-    monkeypatch.setattr(throttle.time, 'monotonic', lambda: now[0])
-    lines = Throttle(2.0)
+    lines = Throttle(2.0, clock=lambda: now[0])
     allowed = []
     for tick in range(100):  # every 50 ms for 5 s
         now[0] = tick * 0.05
