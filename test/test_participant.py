@@ -98,6 +98,18 @@ def test_a_timer_runs_at_once_after_the_clock_went_back(node):
     assert ticks == [100_000_000_000, 10_000_000_000]
 
 
+def test_a_late_event_never_wakes_a_canceled_timer(node):
+    # A motion cancels its tick when it finishes; an event still queued for it must not
+    # start the tick again (putting a schedule back resets the timer, which un-cancels it).
+    deliver, ticks, timer = tick_at(node)
+    deliver(5_000_000_000)
+    timer.cancel()
+    deliver(5_040_000_000)
+    deliver(5_000_000_000)
+    assert ticks == [5_000_000_000]
+    assert timer.is_canceled()
+
+
 def test_take_part_needs_sim_time(ros_context):
     node = Node('wall', context=ros_context)
     try:

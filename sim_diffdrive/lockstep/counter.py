@@ -147,6 +147,8 @@ class MessageCounter:
             # motion's first command then landed a step late: 1 run in 30 beside three busy
             # loops).  Run it only when due; put the schedule back after any other event.  (A
             # clock that went back, replayed or restarted, starts the schedule afresh.)
+            if timer.is_canceled():
+                return  # an event queued before the cancel: resetting would un-cancel it
             now_ns = timer.clock.now().nanoseconds
             if fired_at[0] is not None and fired_at[0] <= now_ns:
                 due_ns = fired_at[0] + timer.timer_period_ns
