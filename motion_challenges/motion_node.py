@@ -362,6 +362,8 @@ class MotionNode(Node):
         if now_ns == 0:
             return
         self._take_early_odoms(now_ns)
+        if self.state in (MotionState.RUNNING, MotionState.SETTLING) and self._dropped_mid_run():
+            return
         if self.state == MotionState.WAITING:
             if self._missing():
                 return
@@ -387,6 +389,18 @@ class MotionNode(Node):
             self._stop_ns = now_ns
         if self.state == MotionState.SETTLING:
             self._settle(now_ns)
+
+    def _dropped_mid_run(self):
+        """Fail, stopping the robot, once the simulator has gone on without this node."""
+        dropped_ns = self.lockstep.dropped_ns if self.lockstep is not None else None
+        if dropped_ns is None or dropped_ns < self.start_ns:
+            return False  # never, or while waiting to start: nothing was commanded yet
+        into_s = (dropped_ns - self.start_ns) / _NS
+        self.finish(EXIT_FAILED, f'The simulator went on without this node at '
+                                 f'{dropped_ns / _NS:.3f} s, {into_s:.3f} s into the motion, '
+                                 'stepping without waiting for its commands; '
+                                 'stopped the robot, as the run can no longer end where it should')
+        return True
 
     def _settle(self, now_ns):
         # Report the pose from odometry measured after the stop took effect, if there is any.

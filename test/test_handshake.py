@@ -82,8 +82,9 @@ def test_garbage_is_not_an_answer(text):
 
 
 def test_roster_round_trip():
-    roster = Roster('/sim', 5, {'b', 'a'}, {CMD}, ['/m did not answer'])
+    roster = Roster('/sim', 5, {'b', 'a'}, {CMD}, ['/m did not answer'], {'c': 40})
     assert Roster.decode(roster.encode()) == roster
+    assert Roster.decode(Roster('/sim', 5).encode()).dropped == {}
     with pytest.raises(ValueError):
         Roster.decode('{"owner": "/sim"}')
 
@@ -107,8 +108,14 @@ def test_the_roster_names_counted_members_and_the_topics_they_handle():
     assert roster.members == {'sim', 'r1'}
     assert roster.heard_topics == {CMD, '/robot1/cmd_vel'}
     assert ledger.version > version
-    ledger.drop('r1')
-    assert ledger.roster('/sim', owner.now).heard_topics == {CMD}
+    ledger.drop('r1', owner.now)
+    roster = ledger.roster('/sim', owner.now)
+    assert roster.heard_topics == {CMD}
+    # Every later roster says when it was dropped, also once it has joined again.
+    assert roster.dropped == {'r1': owner.now}
+    ledger.receive(robot, owner.now)
+    owner.step()
+    assert ledger.roster('/sim', owner.now).dropped == {'r1': owner.now - 20 * MS}
 
 
 def test_alone_the_owner_never_waits():

@@ -197,6 +197,28 @@ def test_a_killed_participant_is_left_behind_and_a_late_one_is_waited_for(graph,
     assert 'No cmd_vel for 0.5 s: stopping the robot' in sim_output
 
 
+def test_a_motion_the_simulator_went_on_without_fails_and_never_says_done(graph, simulator):
+    # Silent for longer than lockstep_timeout (0.5 s) mid-run, as on a lossy link or a machine
+    # too busy to run it: the simulator steps on without it, so the run cannot end exact.
+    sim, probe, _ = simulator
+    circle = start('circle_back_and_forth', 'use_sim_time:=true', 'cycles:=1')
+    try:
+        assert graph.spin_until(lambda: probe.odom.twist.twist.linear.x == 0.5, 30.0)
+        circle.send(signal.SIGSTOP)
+        stopped_at = stamp_s(probe.odom)
+        assert graph.spin_until(lambda: stamp_s(probe.odom) > stopped_at + 1.0, 10.0)
+        circle.send(signal.SIGCONT)
+        assert graph.spin_until(lambda: circle.poll() is not None, 20.0), circle.output()
+    finally:
+        output = stop(circle, signal.SIGKILL)
+    assert circle.returncode != 0, output
+    assert 'Done in' not in output, output
+    assert re.search(r'went on without this node at [0-9.]+ s, [0-9.]+ s into the motion, '
+                     r'.*stopped the robot', output), output
+    assert graph.spin_until(lambda: probe.odom.twist.twist.linear.x == 0.0, 10.0)
+    assert 'Lockstep: nothing heard from /circle_back_and_forth' in stop(sim)
+
+
 # The default lockstep_timeout: on a loaded machine a participant may take longer than the
 # fixture's 0.5 s to answer, and this test asserts that nobody is dropped.
 @pytest.mark.parametrize('simulator', [2.0], indirect=True)

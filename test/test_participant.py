@@ -15,6 +15,8 @@
 
 """A node's side of the lockstep: what take_part() counts and when it answers."""
 
+from types import SimpleNamespace
+
 from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
 import pytest
@@ -24,6 +26,7 @@ from rclpy.parameter import Parameter
 from rclpy.time import Time
 from rosgraph_msgs.msg import Clock as ClockMsg
 from sim_diffdrive.lockstep.handshake import Answer
+from sim_diffdrive.lockstep.handshake import Roster
 from sim_diffdrive.lockstep.participant import ANSWER_QOS
 from sim_diffdrive.lockstep.participant import take_part
 from std_msgs.msg import String
@@ -117,6 +120,25 @@ def test_take_part_needs_sim_time(ros_context):
             take_part(node)
     finally:
         node.destroy_node()
+
+
+def test_a_roster_that_says_it_was_dropped_is_noted_once_per_drop(node):
+    lockstep = take_part(node)
+    warned = []
+    logger = SimpleNamespace(warning=warned.append, info=lambda text: None)
+    node.get_logger = lambda: logger
+
+    def roster(members, dropped):
+        return String(data=Roster('/sim', 0, members, set(), [], dropped).encode())
+    lockstep._on_roster(roster({lockstep.id}, {'/other#1': 5}))
+    assert lockstep.joined and lockstep.dropped_ns is None and warned == []
+    # Left out of a roster that was lost; the next one, with it back in, still says so.
+    for _ in range(2):
+        lockstep._on_roster(roster({lockstep.id}, {lockstep.id: 2_500_000_000}))
+    assert lockstep.dropped_ns == 2_500_000_000 and lockstep.joined
+    assert len(warned) == 1 and 'went on without this node at 2.500 s' in warned[0]
+    lockstep._on_roster(roster({lockstep.id}, {lockstep.id: 4_000_000_000}))
+    assert lockstep.dropped_ns == 4_000_000_000 and len(warned) == 2
 
 
 def test_a_stale_or_zero_stamp_never_lowers_what_was_heard(node):

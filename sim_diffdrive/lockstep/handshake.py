@@ -109,7 +109,9 @@ class Roster:
     ``heard_topics`` are the topics that some counted node handles (the owner's cmd_vel among
     them), so a controller can wait until whoever drives on its topic is counted too.  While
     the clock is held the owner repeats the roster with ``waiting`` filled in, so a participant
-    can tell a held clock from a simulator that is gone.
+    can tell a held clock from a simulator that is gone.  ``dropped`` names every participant
+    the owner went on without, with the time it did so [ns]: each roster carries it, so one that
+    was dropped learns of it even when the roster it was left out of is lost or overtaken.
     """
 
     owner: str
@@ -117,13 +119,15 @@ class Roster:
     members: set = field(default_factory=set)
     heard_topics: set = field(default_factory=set)
     waiting: list = field(default_factory=list)
+    dropped: dict = field(default_factory=dict)
 
     def encode(self):
         """Return the roster as the text of a std_msgs/String."""
-        return json.dumps({'owner': self.owner, 'step_ns': self.step_ns,
-                           'members': sorted(self.members),
-                           'heard_topics': sorted(self.heard_topics), 'waiting': self.waiting},
-                          separators=(',', ':'))
+        data = {'owner': self.owner, 'step_ns': self.step_ns, 'members': sorted(self.members),
+                'heard_topics': sorted(self.heard_topics), 'waiting': self.waiting}
+        if self.dropped:
+            data['dropped'] = self.dropped
+        return json.dumps(data, separators=(',', ':'))
 
     @classmethod
     def decode(cls, text):
@@ -133,8 +137,9 @@ class Roster:
             return cls(str(data['owner']), int(data['step_ns']),
                        {str(m) for m in data['members']},
                        {str(t) for t in data.get('heard_topics', ())},
-                       [str(w) for w in data.get('waiting', ())])
-        except (TypeError, KeyError, ValueError) as error:
+                       [str(w) for w in data.get('waiting', ())],
+                       _counts(data.get('dropped', {})))
+        except (TypeError, KeyError, ValueError, AttributeError) as error:
             raise ValueError(f'not a lockstep roster: {error}') from None
 
 
@@ -172,6 +177,8 @@ class StepLedger:
         self.owner = owner
         self.members = {}
         self.left = set()
+        # Every participant ever dropped, with the time of its latest drop [ns] (see Roster).
+        self.dropped = {}
         # Goes up whenever what roster() returns may have changed.
         self.version = 0
 
@@ -205,9 +212,10 @@ class StepLedger:
         return {pid for pid, member in self.members.items()
                 if member.synced and not member.leaving}
 
-    def drop(self, participant):
-        """Go on without a participant (it may join again by answering); never the owner."""
+    def drop(self, participant, now_ns=0):
+        """Go on without a participant from now_ns (it may join again by answering)."""
         if participant != self.owner and self.members.pop(participant, None) is not None:
+            self.dropped[participant] = now_ns
             self.version += 1
 
     def silent(self, wall_s, timeout_s):
@@ -221,7 +229,7 @@ class StepLedger:
         counted = self.synced()
         return Roster(owner, now_ns, counted,
                       {topic for pid in counted for topic in self.members[pid].answer.heard},
-                      list(waiting))
+                      list(waiting), dict(self.dropped))
 
     def owed(self):
         """

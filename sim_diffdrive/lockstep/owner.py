@@ -218,7 +218,7 @@ class LockstepOwner:
             logger.warning(
                 f'Lockstep: nothing heard from {answer.node} for {timeout:g} s (its last answer: '
                 f'{answer.step_ns / _NS:.3f} s); going on without it')
-            ledger.drop(pid)
+            ledger.drop(pid, now_ns)
         held = []
         for reason in waiting:
             pid, topic, _ = reason

@@ -62,6 +62,8 @@ class Participant:
         self._last = None
         self._last_clock_messages = 0
         self.left = False
+        # When the clock owner last went on without this node [ns, its clock], or None.
+        self.dropped_ns = None
         self._executor_checked = False
         # The clock this node runs on (its TimeSource's subscription, remapped or not).
         clock_topic = next((sub.topic_name for sub in node.subscriptions
@@ -159,6 +161,12 @@ class Participant:
         self.roster = roster
         self.roster_wall = time.monotonic()
         self.owner = roster.owner
+        dropped_ns = roster.dropped.get(self.id)
+        if dropped_ns is not None and dropped_ns != self.dropped_ns:
+            self.dropped_ns = dropped_ns
+            self.node.get_logger().warning(
+                f'{roster.owner} went on without this node at {dropped_ns / _NS:.3f} s: it heard '
+                'nothing from it for its lockstep_timeout (a stalled process, or a lossy link?)')
         joined = self.id in roster.members
         if joined != self.joined:
             self.joined = joined
