@@ -40,6 +40,9 @@ if os.environ.get('PYTEST_XDIST_WORKER', 'gw0') != 'gw0':
 use_package_profile()  # before this process makes its first node
 # Subprocesses write each log line at once, so a test reads their output as it happens.
 os.environ.setdefault('RCUTILS_LOGGING_BUFFERED_STREAM', '0')
+# numpy's OpenBLAS starts a thread per core on import, spinning: 0.1 CPU s of the 0.5 each
+# started process spends importing, for matrix work that nothing here does.
+os.environ.setdefault('OPENBLAS_NUM_THREADS', '1')
 
 
 @pytest.fixture

@@ -18,9 +18,10 @@ A motion interrupted as a user meets it: killed, Ctrl-C, SIGTERM, its simulator 
 Ctrl-C and SIGTERM come at every phase; the simulator is killed and restarted under a closed
 loop.
 
-Several scenarios run at once, each in its own ROS namespace with its own simulator, and with
-``/clock`` remapped into that namespace, so that one simulator's time never drives another's
-motion.  A probe per namespace records odometry (and cmd_vel where it matters) with the wall
+Several scenarios run at once, each in its own ROS namespace.  Those on sim time share one
+simulator process, a robot each (its ``robots`` parameter), and its lockstep, with ``/clock``
+remapped into the simulator's namespace; a scenario whose simulator is killed has one of its
+own.  A probe per namespace records odometry (and cmd_vel where it matters) with the wall
 time it arrived.  Phases are recognised from odometry and from the motion's log.
 """
 
@@ -214,13 +215,24 @@ def reached(run, robot):
 
 
 def interrupt_all(graph, procs, robots, timeout=40.0):
-    """Start every robot's simulator and motion, interrupt each in its phase, check the ends."""
+    """Start the robots' simulators and motions, interrupt each in its phase, check the ends."""
+    # The robots on sim time share one simulator process (its robots parameter) and its
+    # lockstep: a motion that is interrupted leaves it, and the others go on.
+    shared = [robot.name for robot in robots if robot.sim == 'process']
+    sim_namespace = f'{_PREFIX}_{shared[0]}_sim' if shared else None
+    if shared:
+        procs('sim', 'unicycle_sim', *ros_args(
+            sim_namespace, *SIM_CLOCK, KEEP_LAST_COMMAND, f'robots:={shared}'))
+    args = {}  # per robot: the --ros-args of its motion but for the parameters
     for robot in robots:
-        namespace = f'{_PREFIX}_{robot.name}'
         if robot.sim == 'process':
-            procs(f'{robot.name}_sim', 'unicycle_sim', *ros_args(
-                namespace, *SIM_CLOCK, KEEP_LAST_COMMAND))
-        elif robot.sim == 'in-process':
+            namespace = f'{sim_namespace}/{robot.name}'
+            args[robot.name] = {'namespace': namespace, 'clock': f'{sim_namespace}/clock',
+                                'sim_time': True}
+        else:
+            namespace = f'{_PREFIX}_{robot.name}'
+            args[robot.name] = {'namespace': namespace, 'clock': f'{namespace}/clock'}
+        if robot.sim == 'in-process':
             graph.add(UnicycleSim(namespace=namespace, context=graph.context,
                                   cli_args=ros_args(namespace, KEEP_LAST_COMMAND)))
         if robot.sim:
@@ -229,9 +241,9 @@ def interrupt_all(graph, procs, robots, timeout=40.0):
         run = robot.run
         name, params = run.args()
         typed = run.phase == 'typed'
-        run.proc = procs(f'{robot.name}_{run.phase}', name, *ros_args(
-            f'{_PREFIX}_{robot.name}', *params, sim_time=robot.sim == 'process'),
-            stdin=subprocess.PIPE if typed else subprocess.DEVNULL)
+        run.proc = procs(f'{robot.name}_{run.phase}', name,
+                         *ros_params(*params, **args[robot.name]),
+                         stdin=subprocess.PIPE if typed else subprocess.DEVNULL)
         run.started_at = time.monotonic()
         if typed:
             # Answer the first question and leave the pipe open: it waits for the second.

@@ -159,13 +159,14 @@ def test_a_multithreaded_executor_is_refused_by_name(graph):
 
 def test_a_cmd_vel_listener_is_not_the_robot(graph):
     # A listener on cmd_vel (as ros2 topic echo or a bridge) is there first; the simulator
-    # comes 3 s after the motion.  Wall time throughout.
+    # comes 1 s after the motion (which would start within a tick of discovering a subscriber,
+    # 0.3 s at most).  Wall time throughout.
     listener = graph.probe('cmd_vel_listener', use_sim_time=False, listen_only=True,
                            odom_topic='unused_odom', record_commands=True)
     motion = start('rotate_robot', *WALL_ROTATE)
     try:
         assert graph.spin_until(lambda: 'Waiting for the robot' in motion.output(), 20.0)
-        graph.spin_for(3.0)
+        graph.spin_for(1.0)
         assert motion.poll() is None, motion.output()
         assert not listener.commands or all(
             msg.angular.z == 0.0 for _, _, msg in listener.commands)
