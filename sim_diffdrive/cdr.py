@@ -101,9 +101,11 @@ def read_twist_stamped(data):
 
 def read_odometry(data):
     """
-    Return (stamp [ns], frame_id, child_frame_id, position, orientation) of Odometry bytes.
+    Return (stamp [ns], frame_id, child_frame_id, position, orientation, twist) of Odometry bytes.
 
-    position is (x, y, z), orientation (x, y, z, w).
+    position is (x, y, z), orientation (x, y, z, w), twist (linear.x, angular.z).  Reading these
+    costs a few microseconds; rclpy's typed subscription builds the whole message (two 36-double
+    covariances as numpy arrays) at about 100 us on the development machine.
     """
     order = _byte_order(data)
     sec, nanosec = struct.unpack_from(order + 'iI', data, _BODY)
@@ -116,7 +118,8 @@ def read_odometry(data):
         offset += 4 + length
     offset += -(offset - _BODY) % 8
     pose = struct.unpack_from(order + '7d', data, offset)
-    return sec * _NS + nanosec, frames[0], frames[1], pose[:3], pose[3:]
+    twist = struct.unpack_from(order + 'd32xd', data, offset + 8 * _LINEAR_X)
+    return sec * _NS + nanosec, frames[0], frames[1], pose[:3], pose[3:], twist
 
 
 def covariance(diagonal):

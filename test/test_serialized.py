@@ -93,7 +93,8 @@ def test_every_robots_odometry_bytes_decode_to_the_message_field_by_field():
             assert deserialize_message(data, Odometry) == expected, (i, pair)
             assert len(data) == len(serialize_message(expected))
             assert read_odometry(data) == (stamp_ns, *pair, (values[0][i], values[1][i], 0.0),
-                                           (0.0, 0.0, values[2][i], values[3][i]))
+                                           (0.0, 0.0, values[2][i], values[3][i]),
+                                           (values[4][i], values[5][i]))
             assert header_stamp_ns(data) == stamp_ns
 
 
@@ -138,6 +139,31 @@ def test_commands_read_from_their_bytes_equal_rclpys_deserialize():
                                                  decoded.twist.angular.z)
 
 
+def test_odometry_read_from_any_publishers_bytes_equals_rclpys_deserialize():
+    # A motion reads its odometry from the bytes (motion_node.OdomPose): frames of every length
+    # (so every alignment of the doubles after them), any numbers, as any publisher sends them.
+    rng = random.Random(11)
+    for length in range(21):
+        for _ in range(10):
+            msg = Odometry()
+            msg.header.stamp.sec = rng.randint(-2 ** 31, 2 ** 31 - 1)
+            msg.header.stamp.nanosec = rng.randint(0, NS - 1)
+            msg.header.frame_id = random_frame(rng, length)
+            msg.child_frame_id = random_frame(rng, rng.randint(0, 20))
+            p, q = msg.pose.pose.position, msg.pose.pose.orientation
+            p.x, p.y, p.z, q.x, q.y, q.z, q.w = (rng.uniform(-1e5, 1e5) for _ in range(7))
+            msg.twist.twist = random_twist(rng)
+            msg.pose.covariance = [rng.uniform(-1, 1) for _ in range(36)]
+            data = serialize_message(msg)
+            d = deserialize_message(data, Odometry)
+            stamp_ns, frame, child, position, orientation, twist = read_odometry(data)
+            assert stamp_ns == d.header.stamp.sec * NS + d.header.stamp.nanosec
+            assert (frame, child) == (d.header.frame_id, d.child_frame_id)
+            p, q = d.pose.pose.position, d.pose.pose.orientation
+            assert bits(*position, *orientation) == bits(p.x, p.y, p.z, q.x, q.y, q.z, q.w)
+            assert bits(*twist) == bits(d.twist.twist.linear.x, d.twist.twist.angular.z)
+
+
 def test_big_endian_commands_are_read_too():
     # What a big-endian machine sends: encapsulation 00 00, every number big endian.
     twist = struct.pack('>4x6d', 0.25, 1.0, 2.0, 3.0, 4.0, -0.5)
@@ -147,6 +173,11 @@ def test_big_endian_commands_are_read_too():
                + struct.pack('>6d', 1.5, 9.0, 9.0, 9.0, 9.0, 2.5))
     assert read_twist_stamped(stamped) == (-3 * NS + 999, 1.5, 2.5)
     assert header_stamp_ns(stamped) == -3 * NS + 999
+    odom = (struct.pack('>4xiII', 7, 5, len(frame)) + frame + bytes(2)
+            + struct.pack('>I', 2) + b'b\0' + bytes(2) + struct.pack('>7d', *range(1, 8))
+            + bytes(8 * 36) + struct.pack('>6d', 0.75, 9.0, 9.0, 9.0, 9.0, -1.25))
+    assert read_odometry(odom) == (7 * NS + 5, 'base_link', 'b', (1.0, 2.0, 3.0),
+                                   (4.0, 5.0, 6.0, 7.0), (0.75, -1.25))
 
 
 def test_bytes_in_another_encoding_or_too_short_are_not_taken_for_a_command():

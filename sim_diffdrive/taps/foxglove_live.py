@@ -156,7 +156,7 @@ class FoxgloveLive:
 def _odometry_fields(odom):
     """Return (frame_id, child_frame_id, position, orientation) of an Odometry or its bytes."""
     if isinstance(odom, bytes):
-        return read_odometry(odom)[1:]
+        return read_odometry(odom)[1:5]
     p, q = odom.pose.pose.position, odom.pose.pose.orientation
     return (odom.header.frame_id, odom.child_frame_id, (p.x, p.y, p.z),
             (q.x, q.y, q.z, q.w))

@@ -19,13 +19,16 @@ A node that stands in for a controller or a listener in tests, and what reads it
 ticks); the helpers read poses and speeds out of Odometry and build commands.
 """
 
+from collections.abc import Sequence
 import math
 import time
 
 from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
+from rclpy.serialization import deserialize_message
 from sim_diffdrive.angles import yaw_from_quaternion
+from sim_diffdrive.cdr import header_stamp_ns
 
 _NS = 1_000_000_000
 
@@ -65,16 +68,49 @@ def angle_error(a, b):
     return abs(math.remainder(a - b, 2.0 * math.pi))
 
 
+class Received(Sequence):
+    """
+    Messages in the order they came, kept as bytes; each becomes its message when first read.
+
+    A typed subscription builds every Odometry as it comes, at about 100 us each (its two
+    covariances become numpy arrays); a test reads a few of the thousands a run sends.
+    """
+
+    def __init__(self, msg_type):
+        self._type = msg_type
+        self._data = []
+        self._messages = {}  # index -> the message, once read
+
+    def append(self, data):
+        self._data.append(data)
+
+    def __len__(self):
+        return len(self._data)
+
+    def __getitem__(self, index):
+        if isinstance(index, slice):
+            return [self[i] for i in range(*index.indices(len(self._data)))]
+        index = range(len(self._data))[index]  # negative indices; IndexError
+        msg = self._messages.get(index)
+        if msg is None:
+            msg = self._messages[index] = deserialize_message(self._data[index], self._type)
+        return msg
+
+    def stamp_ns(self, index):
+        """Return the header stamp [ns] of a message, without making the message."""
+        return header_stamp_ns(self._data[index])
+
+
 class Probe(Node):
     """Record odometry and send Twist commands, or play a script of them on sim-time ticks."""
 
     def __init__(self, name='probe', odom_topic='odom', cmd_topic='cmd_vel', listen_only=False,
                  record_commands=False, **kwargs):
         super().__init__(name, **kwargs)
-        self.odoms = []
+        self.odoms = Received(Odometry)
         self.odom_walls = []  # the monotonic wall time each odometry message arrived
         self.commands = []  # with record_commands: (monotonic, time.time(), Twist) heard
-        self.create_subscription(Odometry, odom_topic, self._on_odom, 200)
+        self.create_subscription(Odometry, odom_topic, self._on_odom, 200, raw=True)
         # A listener only: a second publisher on cmd_vel would make the simulator warn.
         self.cmd_pub = None if listen_only else self.create_publisher(Twist, cmd_topic, 10)
         if record_commands:
@@ -116,7 +152,7 @@ class Probe(Node):
 
     def after(self, wall):
         """Return the odometry messages that arrived at or after monotonic wall time wall."""
-        return [msg for received, msg in zip(self.odom_walls, self.odoms) if received >= wall]
+        return [self.odoms[i] for i, received in enumerate(self.odom_walls) if received >= wall]
 
     def _on_odom(self, msg):
         self.odom_walls.append(time.monotonic())
@@ -124,7 +160,7 @@ class Probe(Node):
 
     def odom_after(self, t_ns):
         """Return the first odometry stamped at or after t_ns (sim time), or None."""
-        for odom in self.odoms:
-            if odom.header.stamp.sec * _NS + odom.header.stamp.nanosec >= t_ns:
-                return odom
+        for i in range(len(self.odoms)):
+            if self.odoms.stamp_ns(i) >= t_ns:
+                return self.odoms[i]
         return None
