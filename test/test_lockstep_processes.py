@@ -226,8 +226,10 @@ def test_a_motion_the_simulator_went_on_without_fails_and_never_says_done(graph,
     try:
         assert graph.spin_until(lambda: probe.odom.twist.twist.linear.x == 0.5, 30.0)
         circle.send(signal.SIGSTOP)
-        stopped_at = stamp_s(probe.odom)
-        assert graph.spin_until(lambda: stamp_s(probe.odom) > stopped_at + 1.0, 10.0)
+        # Until the simulator says so: the probe's latest odometry may lag the simulator by
+        # more than a second of sim time on a busy machine, and waiting for a second past it
+        # once let the motion go on before it was dropped (a run that ended exact).
+        assert graph.spin_until(lambda: 'nothing heard from /circle' in sim.output(), 10.0)
         circle.send(signal.SIGCONT)
         assert graph.spin_until(lambda: circle.poll() is not None, 20.0), circle.output()
     finally:
@@ -289,11 +291,11 @@ def test_a_clock_held_for_a_slow_participant_is_not_a_dead_simulator(graph, simu
     finally:
         staller_output = stop(staller)
     assert 'stalled' in staller_output, staller_output
+    sim_output = stop(sim)
     # While held for 1.5 s the clock was re-sent at doubling intervals (10, 20, ... 320 ms:
     # about ten times), not every 10 ms (150 times, which stalled 32 processes on 2 cores).
-    assert 4 <= max(sent.values()) <= 15, sent.most_common(3)
+    assert 4 <= max(sent.values()) <= 15, (sent.most_common(3), sim_output, output)
     assert code == 0, output  # not 'No odometry for 1.5 s mid-motion'
     assert_at(odom, CLOSED_LOOP_END, output)
-    sim_output = stop(sim)
     assert 'Lockstep: /staller takes part' in sim_output
     assert 'going on without' not in sim_output
