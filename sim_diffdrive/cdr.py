@@ -75,6 +75,11 @@ def _byte_order(data):
     return order
 
 
+def clock_message(stamp_ns):
+    """Return the CDR bytes of a rosgraph_msgs/Clock at stamp_ns (floor seconds, nanoseconds)."""
+    return ENCAPSULATION + _LE_STAMP.pack(*divmod(stamp_ns, _NS))
+
+
 def header_stamp_ns(data):
     """Return the stamp [ns] of a message whose first field is a std_msgs/Header."""
     order = _byte_order(data)

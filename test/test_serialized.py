@@ -40,6 +40,8 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.serialization import deserialize_message
 from rclpy.serialization import serialize_message
+from rosgraph_msgs.msg import Clock as ClockMsg
+from sim_diffdrive.cdr import clock_message
 from sim_diffdrive.cdr import covariance
 from sim_diffdrive.cdr import header_stamp_ns
 from sim_diffdrive.cdr import OdometryLayout
@@ -96,6 +98,15 @@ def test_every_robots_odometry_bytes_decode_to_the_message_field_by_field():
                                            (0.0, 0.0, values[2][i], values[3][i]),
                                            (values[4][i], values[5][i]))
             assert header_stamp_ns(data) == stamp_ns
+
+
+def test_clock_bytes_equal_rclpys_serialized_clock():
+    for stamp_ns in (0, 1, NS - 1, NS, 20_000_000 * 7, 1_795_515_697_795_092_236,
+                     2 ** 31 * NS - 1):
+        msg = ClockMsg()
+        msg.clock.sec, msg.clock.nanosec = divmod(stamp_ns, NS)
+        assert clock_message(stamp_ns) == serialize_message(msg)
+        assert deserialize_message(clock_message(stamp_ns), ClockMsg) == msg
 
 
 def test_an_odometry_layout_without_robots_is_empty():
