@@ -41,7 +41,7 @@ from sim_diffdrive.harness import stamp_s
 from sim_diffdrive.harness import stop
 from sim_diffdrive.lockstep.participant import take_part
 
-FACTOR = 1000.0
+FACTOR = 40.0  # as in test_lockstep_processes.py
 ROTATE = ('angular_speed_deg:=90.0', 'angle_deg:=90.0', 'clockwise:=false')
 # A whole turn (200 steps), so that a flood at 1 kHz overlaps it with over a hundred messages
 # however fast the handshake (a quarter turn took 0.1 s wall, 34 messages at 3 ms apart).
