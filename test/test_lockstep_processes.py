@@ -17,8 +17,8 @@ Lockstep across processes: the real executables on sim time, on a machine kept b
 
 The simulator owns /clock with a real_time_factor above the handshake's pace and steps in
 lockstep (its default) with every motion; busy-loop processes load both cores, and an extra
-subscriber process listens to cmd_vel and odom without taking part.  Every motion must end at its analytic pose
-as exactly as in one process, and two runs must end bit-identical.
+subscriber process listens to cmd_vel and odom without taking part.  Every motion must end at
+its analytic pose as exactly as in one process, and two runs must end bit-identical.
 """
 
 import collections
