@@ -90,7 +90,7 @@ def procs(tmp_path):
 
 # The longest modules start first, so that with pytest -n the short ones fill in around them
 # instead of one long test running alone at the end.
-_FIRST = ('test_lockstep_processes', 'test_interrupts', 'test_bench', 'test_faults')
+_FIRST = ('test_lockstep_processes', 'test_view', 'test_interrupts', 'test_bench', 'test_faults')
 
 
 def pytest_collection_modifyitems(items):
