@@ -127,6 +127,14 @@ def bits(*values):
     return struct.pack(f'<{len(values)}d', *values)
 
 
+def random_header(rng, msg, frame_length):
+    """Give msg's header any stamp and a random frame_id of frame_length characters."""
+    msg.header.stamp.sec = rng.randint(-2 ** 31, 2 ** 31 - 1)
+    msg.header.stamp.nanosec = rng.randint(0, NS - 1)
+    msg.header.frame_id = random_frame(rng, frame_length)
+    return msg
+
+
 def test_commands_read_from_their_bytes_equal_rclpys_deserialize():
     rng = random.Random(7)
     for _ in range(500):
@@ -136,10 +144,7 @@ def test_commands_read_from_their_bytes_equal_rclpys_deserialize():
                                                                  decoded.angular.z)
     for length in range(21):
         for _ in range(20):
-            msg = TwistStamped()
-            msg.header.stamp.sec = rng.randint(-2 ** 31, 2 ** 31 - 1)
-            msg.header.stamp.nanosec = rng.randint(0, NS - 1)
-            msg.header.frame_id = random_frame(rng, length)
+            msg = random_header(rng, TwistStamped(), length)
             msg.twist = random_twist(rng)
             data = serialize_message(msg)
             decoded = deserialize_message(data, TwistStamped)
@@ -156,10 +161,7 @@ def test_odometry_read_from_any_publishers_bytes_equals_rclpys_deserialize():
     rng = random.Random(11)
     for length in range(21):
         for _ in range(10):
-            msg = Odometry()
-            msg.header.stamp.sec = rng.randint(-2 ** 31, 2 ** 31 - 1)
-            msg.header.stamp.nanosec = rng.randint(0, NS - 1)
-            msg.header.frame_id = random_frame(rng, length)
+            msg = random_header(rng, Odometry(), length)
             msg.child_frame_id = random_frame(rng, rng.randint(0, 20))
             p, q = msg.pose.pose.position, msg.pose.pose.orientation
             p.x, p.y, p.z, q.x, q.y, q.z, q.w = (rng.uniform(-1e5, 1e5) for _ in range(7))
