@@ -95,7 +95,10 @@ def watch_motion(graph, start, stop, motion, rtf, **sim_params):
     its error, and the sim and wall s of the movement, from rest to rest.
     """
     _, executable, params, sim_seconds, turn_deg = MOTIONS[motion]
-    probe, processes, code = graph.probe('motion_observer', listen_only=True), [], 'no odometry'
+    # One observer per motion in the same graph: without /rosout, rcl does not warn about the
+    # name used again.
+    probe = graph.probe('motion_observer', listen_only=True, enable_rosout=False)
+    processes, code = [], 'no odometry'
     try:
         processes.append(start('unicycle_sim', publish_clock=True, real_time_factor=rtf,
                                **sim_params))
