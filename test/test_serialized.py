@@ -32,6 +32,7 @@ import time
 
 from geometry_msgs.msg import Twist
 from geometry_msgs.msg import TwistStamped
+from motion_challenges.motion_node import OdomPose
 from nav_msgs.msg import Odometry
 import numpy as np
 import pytest
@@ -175,6 +176,25 @@ def test_odometry_read_from_any_publishers_bytes_equals_rclpys_deserialize():
             p, q = d.pose.pose.position, d.pose.pose.orientation
             assert bits(*position, *orientation) == bits(p.x, p.y, p.z, q.x, q.y, q.z, q.w)
             assert bits(*twist) == bits(d.twist.twist.linear.x, d.twist.twist.angular.z)
+
+
+def test_a_motion_reads_odometry_in_another_encapsulation_through_rclpy():
+    # XCDR2 (encapsulation 00 07) aligns doubles to 4, not 8; with these frames the pose starts
+    # at a multiple of 8 either way, so the same body is valid in both.
+    msg = Odometry()
+    msg.header.stamp.sec, msg.header.stamp.nanosec = 12, 345
+    msg.header.frame_id, msg.child_frame_id = 'odom', 'chassis'
+    msg.pose.pose.position.x, msg.pose.pose.position.y = 1.5, -2.5
+    msg.pose.pose.orientation.z, msg.pose.pose.orientation.w = math.sin(0.3), math.cos(0.3)
+    msg.twist.twist.linear.x, msg.twist.twist.angular.z = 0.25, -0.75
+    data = bytearray(serialize_message(msg))
+    data[1] = 7
+    with pytest.raises(UnsupportedEncoding):
+        read_odometry(bytes(data))
+    pose = OdomPose(bytes(data))
+    assert (pose.x, pose.y, pose.stamp_ns, pose.twist) == (1.5, -2.5, 12 * NS + 345, (0.25, -0.75))
+    assert pose.yaw == pytest.approx(0.6, abs=1e-15)
+    assert vars(OdomPose(serialize_message(msg))) == vars(pose)
 
 
 def test_big_endian_commands_are_read_too():
