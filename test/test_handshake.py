@@ -203,7 +203,7 @@ def test_leaving_and_dropping_release_the_clock(joined):
     waiting = ledger.waiting_for(owner.now)
     assert waiting == [('late', None, 0)]
     assert 'did not answer' in ledger.describe(waiting[0], owner.now)
-    ledger.drop('late')
+    ledger.drop('late', owner.now)
     assert ledger.waiting_for(owner.now) == []
 
 
@@ -271,8 +271,8 @@ def test_a_burst_on_a_stamped_topic_is_judged_by_its_stamp_not_by_counts():
 
 def test_the_owner_is_never_dropped_and_only_the_silent_are(joined):
     ledger, owner = joined
-    ledger.drop('sim')
-    assert ledger.synced() == {'sim', 'm'}
+    ledger.drop('sim', owner.now)
+    assert ledger.synced() == {'sim', 'm'} and ledger.dropped == {}
     # Heard from at 1.0 s of wall time: silent only once the timeout has passed since.
     ledger.receive(motion(owner.now, 0, 1, owner.now), owner.now, wall_s=1.0)
     assert ledger.silent(2.5, 2.0) == []

@@ -212,7 +212,7 @@ class StepLedger:
         return {pid for pid, member in self.members.items()
                 if member.synced and not member.leaving}
 
-    def drop(self, participant, now_ns=0):
+    def drop(self, participant, now_ns):
         """Go on without a participant from now_ns (it may join again by answering)."""
         if participant != self.owner and self.members.pop(participant, None) is not None:
             self.dropped[participant] = now_ns
