@@ -124,21 +124,37 @@ def simulator(graph, request):
         stop(sim)
 
 
-def run_motion(graph, sim, probe, executable, *params):
-    """Run a motion on sim time to its end; return (exit code, output, final odometry pose)."""
-    motion = start(executable, 'use_sim_time:=true', *params)
+def run_motions(graph, sim, probes, motions):
+    """
+    Run motions at once on sim time to their ends; return {name: (exit code, output, odometry)}.
+
+    motions: {name: (namespace or None, executable, *params)}; probes: {name: its odometry}.
+    """
+    started = {name: harness.start(executable, *harness.ros_params(
+        'use_sim_time:=true', *params, namespace=namespace))
+        for name, (namespace, executable, *params) in motions.items()}
     try:
-        finished = graph.spin_until(lambda: motion.poll() is not None, 60.0)
+        finished = graph.spin_until(
+            lambda: all(m.poll() is not None for m in started.values()), 60.0)
     finally:
-        output = stop(motion)
-    assert finished, (f'motion did not finish; the probe is at {stamp_s(probe.odom)} s:\n'
-                      f'{output}\n{sim.describe()}')
+        outputs = {name: stop(motion) for name, motion in started.items()}
+    assert finished, (f'motions did not finish; the probes are at '
+                      f'{[stamp_s(p.odom) for p in probes.values()]} s:\n{outputs}\n'
+                      f'{sim.describe()}')
     # The stop reached the simulator before the motion exited; wait for odometry after it.
-    # From the probe's clock (/clock keeps one message): the latest odometry the probe has
-    # taken may be one queued long before, while the machine was busy.
-    after_s = probe.get_clock().now().nanoseconds * 1e-9 + 0.1
-    assert graph.spin_until(lambda: stamp_s(probe.odom) > after_s, 10.0)
-    return motion.returncode, output, probe.odom
+    # From a probe's clock (/clock keeps one message): the latest odometry a probe has taken
+    # may be one queued long before, while the machine was busy.
+    after_s = next(iter(probes.values())).get_clock().now().nanoseconds * 1e-9 + 0.1
+    assert graph.spin_until(lambda: all(stamp_s(p.odom) > after_s for p in probes.values()),
+                            10.0)
+    return {name: (motion.returncode, outputs[name], probes[name].odom)
+            for name, motion in started.items()}
+
+
+def run_motion(graph, sim, probe, executable, *params):
+    """Run a motion on sim time to its end; return (exit code, output, final odometry)."""
+    return run_motions(graph, sim, {'motion': probe},
+                       {'motion': (None, executable, *params)})['motion']
 
 
 def assert_at(odom, expected, output):
@@ -164,22 +180,10 @@ def test_motions_end_exact_and_bit_identical_on_a_busy_machine(graph, busy_machi
         for run in range(2):
             assert reset.wait_for_service(10.0)
             assert graph.spin_until(reset.call_async(Empty.Request()).done, 10.0)
-            started = {name: harness.start(executable, *harness.ros_params(
-                'use_sim_time:=true', *params, namespace=f'/{name}'))
-                for name, (executable, *params) in motions.items()}
-            try:
-                finished = graph.spin_until(
-                    lambda: all(m.poll() is not None for m in started.values()), 60.0)
-            finally:
-                outputs = {name: stop(motion) for name, motion in started.items()}
-            assert finished, f'{outputs}\n{sim.describe()}'
-            # Odometry after the stops (see run_motion).
-            after_s = probes['open'].get_clock().now().nanoseconds * 1e-9 + 0.1
-            assert graph.spin_until(
-                lambda: all(stamp_s(p.odom) > after_s for p in probes.values()), 10.0)
-            for name, motion in started.items():
-                odom, output = probes[name].odom, outputs[name]
-                assert motion.returncode == 0, output
+            ran = run_motions(graph, sim, probes, {
+                name: (f'/{name}', *motion) for name, motion in motions.items()})
+            for name, (code, output, odom) in ran.items():
+                assert code == 0, output
                 assert 'Taking part in lockstep' in output, output
                 ends.setdefault(name, []).append(odom.pose.pose)
                 if name == 'closed':
