@@ -58,12 +58,12 @@ from nav_msgs.msg import Odometry
 from rclpy.clock import Clock, ClockType
 from rclpy.experimental import EventsExecutor
 from sim_diffdrive.cdr import covariance, OdometryLayout, TransformLayout
-from sim_diffdrive.sim.odom_tf import TF_QOS, TF_TOPIC
+from sim_diffdrive.sim.odom_tf import TF_QOS
 from tf2_msgs.msg import TFMessage
 rclpy.init()
 node = rclpy.create_node('bench_floor', enable_rosout=False)
 odom = node.create_publisher(Odometry, 'bench_floor_odom', 10)
-tf = node.create_publisher(TFMessage, TF_TOPIC + '_bench_floor', TF_QOS)
+tf = node.create_publisher(TFMessage, 'bench_floor_tf', TF_QOS)
 frames, zero, one = [('odom', 'base_footprint')], np.zeros(1), np.ones(1)
 odom_bytes = OdometryLayout(frames, covariance([0.0] * 6), covariance([0.0] * 6)).serialize(
     0, 0, zero, zero, zero, one, zero, zero)[0]
