@@ -219,12 +219,23 @@ class MotionNode(Node):
         """Leave the robot stopped, whatever ended the run."""
         if self.context.ok():
             self.stop_robot()
+            said_goodbye = True
             if self.lockstep is not None:
-                self.lockstep.leave(ack_timeout=self.stop_ack_timeout)
+                said_goodbye = self.lockstep.leave(ack_timeout=self.stop_ack_timeout)
             # Fast DDS sends within publish(); its acknowledgement waits for a heartbeat that
             # can be seconds away, so only a short wait covers a resend on a lossy link.
             if self.stop_ack_timeout > 0.0:
-                self.cmd_pub.wait_for_all_acked(Duration(seconds=self.stop_ack_timeout))
+                stopped = self.cmd_pub.wait_for_all_acked(
+                    Duration(seconds=self.stop_ack_timeout))
+                unheard = [what for what, heard in (('the final stop', stopped),
+                                                    ('the lockstep goodbye', said_goodbye))
+                           if not heard]
+                if unheard:
+                    self.get_logger().warning(
+                        f'{" and ".join(unheard).capitalize()} '
+                        f'{"were" if len(unheard) > 1 else "was"} not acknowledged within '
+                        f'{self.stop_ack_timeout:g} s: a subscriber is gone or stalled, or the '
+                        'link is lossy')
 
     # -- helpers for subclasses --------------------------------------------------------------
 

@@ -124,13 +124,16 @@ class Participant:
         Tell the simulator not to wait for this node any more (call before destroying it).
 
         Final: nothing is answered afterwards.  Waits up to ack_timeout [s, wall] until the
-        simulator has the goodbye, so it goes on at once rather than after lockstep_timeout.
+        simulator has the goodbye, so it goes on at once rather than after lockstep_timeout;
+        returns False when it did not have it by then.
         """
+        acknowledged = True
         if self._last is not None and not self.left:
             self.answer(leaving=True)
             if ack_timeout > 0.0:
-                self.wait_acknowledged(ack_timeout)
+                acknowledged = self.wait_acknowledged(ack_timeout)
         self.left = True
+        return acknowledged
 
     def wait_acknowledged(self, timeout):
         """Wait up to timeout [s, wall] until the simulator has every answer sent (a goodbye)."""
