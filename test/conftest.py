@@ -33,7 +33,8 @@ from sim_diffdrive.harness import SimGraph
 
 DOMAIN_ID = isolated_domain_id()
 if os.environ.get('PYTEST_XDIST_WORKER', 'gw0') != 'gw0':
-    # pytest -n: each worker on a domain of its own (the run's, shifted by the worker number).
+    # pytest -n: each worker on a domain of its own, the next ones of the block that the run
+    # claimed (DOMAIN_BLOCK of them, so -n 4 at most keeps clear of other runs).
     worker = int(os.environ['PYTEST_XDIST_WORKER'][2:])
     os.environ[DOMAIN_VARIABLE] = str((DOMAIN_ID - 1 + worker) % 100 + 1)
     DOMAIN_ID = isolated_domain_id()

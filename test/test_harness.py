@@ -22,6 +22,9 @@ import pytest
 from sim_diffdrive.harness import SimGraph
 from sim_diffdrive.harness import start_python
 from sim_diffdrive.harness import stop
+import sim_diffdrive.testing.graph as graph_module
+from sim_diffdrive.testing.graph import claim_domains
+from sim_diffdrive.testing.graph import DOMAIN_BLOCK
 
 # Waits for Ctrl-C, says so, and exits 0 (as the executables do).
 INTERRUPTIBLE = """
@@ -67,6 +70,30 @@ def test_a_child_hears_ctrl_c_even_when_this_process_ignores_it():
     assert 'interrupted' in output, output
     assert process.returncode == 0
     assert process.exited_at - process.signalled_at < 4.0
+
+
+def test_runs_on_one_machine_never_share_a_block_of_domains(tmp_path):
+    # Another run (a process) holds a block; this one claims every other block, then shares.
+    other = start_python('import time\nfrom sim_diffdrive.testing.graph import claim_domains\n'
+                         f'print(claim_domains({str(tmp_path)!r}), flush=True)\n'
+                         'time.sleep(30)')
+    held = len(graph_module._claims)
+    try:
+        deadline = time.monotonic() + 20.0
+        while not other.output().strip() and time.monotonic() < deadline:
+            time.sleep(0.05)
+        others = int(other.output())
+        claimed = [claim_domains(str(tmp_path)) for _ in range(24)]
+        assert sorted(claimed + [others]) == list(range(1, 101, DOMAIN_BLOCK))
+        assert claim_domains(str(tmp_path)) in claimed + [others]  # all taken: one is shared
+        # A claim ends with the process that holds it, however it ends.
+        stop(other, signal.SIGKILL)
+        assert claim_domains(str(tmp_path)) == others
+    finally:
+        stop(other, signal.SIGKILL)
+        for lock in graph_module._claims[held:]:
+            lock.close()
+        del graph_module._claims[held:]
 
 
 def test_a_graph_without_a_stepped_simulator_removes_nodes(ros_context):

@@ -17,7 +17,8 @@ Benchmark this package against the programs it replaces and print one table (``m
 
 Each row puts this project's figure next to a reference measured in the same run and, where
 the project has a target, whether it was met; the raw numbers go to the JSON.  On a ROS domain
-of its own (random in 1..100 unless --domain-id), discovery on this machine only.
+of its own (one no other run on this machine holds, unless --domain-id), discovery on this
+machine only.
 """
 
 import argparse
@@ -63,7 +64,8 @@ def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     parser.add_argument('--quick', action='store_true', help='small sizes and short runs')
     parser.add_argument('--json', default='out/bench.json', help='default: %(default)s')
-    parser.add_argument('--domain-id', type=int, help='ROS domain (default: random in 1..100)')
+    parser.add_argument('--domain-id', type=int,
+                        help='ROS domain (default: one that no other run holds)')
     parser.add_argument('--only', help='comma-separated groups to run, of: ' + ', '.join(groups))
     parser.add_argument('--rtf', type=float, default=100.0, help='real_time_factor (a bound) of '
                         'the simulator across processes (default: %(default)g)')

@@ -26,8 +26,10 @@ sent in the graph has been handled and no node has a timer due, so a controller'
 always lands on the step it was meant for, whatever the machine's load.
 """
 
+import fcntl
 import os
 import random
+import tempfile
 
 import rclpy
 from rclpy.context import Context
@@ -43,23 +45,55 @@ from sim_diffdrive.testing.probe import Probe
 # wide margin for a command to cross the graph before the next clock step.
 FREE_REAL_TIME_FACTOR = 10.0
 DOMAIN_VARIABLE = 'SIM_GRAPH_DOMAIN_ID'
+# Domains a run claims at once: one for each of up to this many pytest workers.
+DOMAIN_BLOCK = 4
+_claims = []  # the lock files this process holds (claim_domains)
 
 
 def isolated_domain_id():
     """
-    Return this test run's ROS domain, chosen at random once and exported; discovery local.
+    Return this test run's ROS domain, claimed once for the run and exported; discovery local.
 
     A run never joins the domain a shell happens to export (a robot, a simulator someone left
-    running): the first call picks a domain in 1..100 and stores it in SIM_GRAPH_DOMAIN_ID
-    (set that to pin one), later calls and the processes started afterwards reuse it through
-    ROS_DOMAIN_ID, and ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST keeps it on this machine.
+    running) nor another run's: the first call claims a block of DOMAIN_BLOCK domains in 1..100
+    that no other process on this machine holds (claim_domains), and stores its first in
+    SIM_GRAPH_DOMAIN_ID (set that to pin one); later calls and the processes started afterwards
+    reuse it through ROS_DOMAIN_ID, and ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST keeps it on this
+    machine.  The rest of the block is for the run's pytest workers (the test suite's conftest).
     """
-    # Fast DDS maps a domain to UDP ports; 1..100 stays clear of 0 (everyone's default) and of
-    # the top of the valid range.
-    domain = os.environ.setdefault(DOMAIN_VARIABLE, str(random.SystemRandom().randint(1, 100)))
+    domain = os.environ.get(DOMAIN_VARIABLE)
+    if domain is None:
+        domain = os.environ[DOMAIN_VARIABLE] = str(claim_domains())
     os.environ['ROS_DOMAIN_ID'] = domain
     os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
     return int(domain)
+
+
+def claim_domains(directory=None):
+    """
+    Claim a free block of domains for this process's lifetime; return the block's first domain.
+
+    A block is claimed by holding an exclusive lock on its file in directory (the temporary
+    directory's sim_graph_domains by default); the lock goes with the process, however it ends.
+    Blocks are tried in random order; when every one is held (25 runs at once), a random
+    block is shared.
+    """
+    # Fast DDS maps a domain to UDP ports; 1..100 stays clear of 0 (everyone's default) and of
+    # the top of the valid range.
+    starts = list(range(1, 101, DOMAIN_BLOCK))
+    random.SystemRandom().shuffle(starts)
+    directory = directory or os.path.join(tempfile.gettempdir(), 'sim_graph_domains')
+    os.makedirs(directory, exist_ok=True)
+    for start in starts:
+        lock = open(os.path.join(directory, f'{start}.lock'), 'a')
+        try:
+            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            lock.close()
+            continue
+        _claims.append(lock)  # held open (and so locked) until this process ends
+        return start
+    return starts[0]
 
 
 class SimGraph(Lockstep):
