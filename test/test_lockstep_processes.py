@@ -25,6 +25,7 @@ import collections
 import math
 import re
 import signal
+import time
 
 from geometry_msgs.msg import Twist
 import pytest
@@ -250,6 +251,34 @@ def test_a_motion_the_simulator_went_on_without_fails_and_never_says_done(graph,
                      r'.*stopped the robot', output), output
     assert graph.spin_until(lambda: probe.odom.twist.twist.linear.x == 0.0, 10.0)
     assert 'Lockstep: nothing heard from /circle_back_and_forth' in stop(sim)
+
+
+def test_a_simulator_that_was_not_running_gives_nobody_up(graph, simulator):
+    # The simulator itself stopped for longer than lockstep_timeout (0.5 s), three times
+    # mid-run (a machine too busy to run it): the motion's answers waited in its queue
+    # meanwhile, so nobody was silent.  (The old code gave up on something after 2 of 6 stops.)
+    sim, probe, _ = simulator
+    _, _, start_yaw = pose_of(probe.odom)
+    # A slow turn (3 s simulated), so that it is still turning at the third stop.
+    motion = start('rotate_robot', 'angular_speed_deg:=30.0', 'angle_deg:=90.0',
+                   'clockwise:=true', 'use_sim_time:=true')
+    try:
+        for _ in range(3):
+            assert graph.spin_until(lambda: probe.odom.twist.twist.angular.z != 0.0, 30.0)
+            stamp = stamp_s(probe.odom)
+            assert graph.spin_until(lambda: stamp_s(probe.odom) > stamp + 0.1, 30.0)
+            sim.send(signal.SIGSTOP)
+            time.sleep(0.8)
+            sim.send(signal.SIGCONT)
+        assert graph.spin_until(lambda: motion.poll() is not None, 30.0), motion.output()
+    finally:
+        sim.send(signal.SIGCONT)
+        output = stop(motion)
+    assert motion.returncode == 0, output
+    assert graph.spin_until(lambda: probe.odom.twist.twist.angular.z == 0.0, 10.0)
+    assert angle_error(pose_of(probe.odom)[2], start_yaw - math.radians(90.0)) < 1e-12, output
+    sim_output = stop(sim)
+    assert 'going on without' not in sim_output, sim_output
 
 
 # The default lockstep_timeout: on a loaded machine a participant may take longer than the

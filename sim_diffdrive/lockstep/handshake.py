@@ -218,6 +218,11 @@ class StepLedger:
             self.dropped[participant] = now_ns
             self.version += 1
 
+    def excuse(self, seconds):
+        """Count nobody silent for seconds in which the owner could not hear (it did not run)."""
+        for member in self.members.values():
+            member.heard_wall += seconds
+
     def silent(self, wall_s, timeout_s):
         """Return the participants nothing was heard from for longer than timeout_s (wall)."""
         return [pid for pid, member in self.members.items()

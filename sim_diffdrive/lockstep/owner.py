@@ -58,6 +58,9 @@ RESEND_S = 0.01
 RESEND_MAX_S = 0.32
 # Weight of the newest step in the moving average of the wall time between steps.
 _STEP_WEIGHT = 0.1
+# The clock timer firing later than this beyond its period means the simulator itself did not
+# run meanwhile (a machine too busy to run it, a debugger) [s, wall]: see _own_stall.
+_STALLED_S = 0.05
 
 
 class LockstepOwner:
@@ -85,6 +88,8 @@ class LockstepOwner:
         self._resend_s = RESEND_S  # the wait before the next re-send of this step
         self._step_s = 0.0  # recent wall time between steps [s; moving average]
         self._warned_wall = 0.0
+        self._looked = time.monotonic()  # when try_step last ran [s, wall]
+        self._stalled_s = 0.0  # how long the simulator itself did not run during this step
 
     def start(self):
         """Count the simulator's own traffic from here on (once its robots exist); go."""
@@ -106,6 +111,7 @@ class LockstepOwner:
         """Start counting answers for the step to step_ns (the simulator is about to take it)."""
         self.ledger.next_step()
         self._waiting = None
+        self._stalled_s = 0.0
         # Not before a step had twice its usual time: a graph of many processes on a busy
         # machine takes longer than RESEND_S for every step, lost sample or not.
         self._resend_s = min(max(RESEND_S, 2.0 * self._step_s), RESEND_MAX_S)
@@ -117,7 +123,9 @@ class LockstepOwner:
         clock = self.clock
         ledger = self.ledger
         wall = clock.wall
-        waited = time.monotonic() - wall
+        now = time.monotonic()
+        self._own_stall(now)
+        waited = now - wall
         if len(ledger.members) <= 1:
             self._publish_roster()
             # Freewheel until the first answer.
@@ -133,12 +141,27 @@ class LockstepOwner:
         waiting = self._waiting
         self._publish_roster(waiting)
         if waiting:
-            if waited <= sim.params.lockstep_timeout or not self._give_up(waiting):
+            held = waited - self._stalled_s  # while the simulator ran, and could hear
+            if held <= sim.params.lockstep_timeout or not self._give_up(waiting):
                 return
         if waited >= clock.budget_s:
             self._step_s += _STEP_WEIGHT * (waited - self._step_s)
             clock.step()
             self._keep_schedule(wall, 1)
+
+    def _own_stall(self, now):
+        """
+        Excuse everyone the time the simulator itself did not run since it last looked.
+
+        Answers sent meanwhile wait in its queue, unheard, and may be handled only after this
+        look: a simulator that was stopped for longer than lockstep_timeout would otherwise
+        take its live participants for silent ones and go on without them.
+        """
+        stalled = now - self._looked - self.clock.period_s()
+        self._looked = now
+        if stalled > _STALLED_S:
+            self._stalled_s += stalled
+            self.ledger.excuse(stalled)
 
     def _keep_schedule(self, wall, steps):
         """
