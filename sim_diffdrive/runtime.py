@@ -27,7 +27,7 @@ all the same.
 ``make_node()`` may also return several nodes (a list or tuple), which then share the one
 executor: several motions in one process, say, each in its robot's namespace.  The run ends
 when every node that has a ``done`` attribute is done, and on exit every node's hook runs, even
-after another's failed, before any node is destroyed.
+after another's failed, before any node is destroyed; the executor is shut down in between.
 """
 
 import signal
@@ -110,6 +110,7 @@ def run(make_node, args=None):
     signal.signal(signal.SIGINT, interrupts)
     signal.signal(signal.SIGTERM, interrupts)
     nodes = []
+    executor = None
     exit_code = EXIT_FAILED
     try:
         nodes = _as_list(make_node())
@@ -136,6 +137,12 @@ def run(make_node, args=None):
             hooks_ok = [_run_shutdown_hook(node, node.get_logger()) for node in nodes]
             if not all(hooks_ok):
                 exit_code = EXIT_FAILED
+            # The executor lets go of the nodes' entities before they are destroyed.  Left to
+            # the garbage collector, it let go of them only as run() returned, after rclpy's
+            # shutdown: once a motion whose simulator had been killed died there (SIGSEGV in
+            # a QoS event handler's __exit__; rclpy issue 1644 is of the same family).
+            if executor is not None:
+                executor.shutdown()
             for node in nodes:
                 if not _destroy(node):
                     exit_code = EXIT_FAILED
