@@ -275,8 +275,12 @@ class MotionNode(Node):
     def _on_odom(self, msg):
         odom = OdomPose(msg)
         self._odom_wall = time.monotonic()
-        if self.sim_time and odom.stamp_ns >= self.now_ns():
+        if self.sim_time:
+            # In stamp order (the order it arrives in), through the queue: odometry from before
+            # the clock used at once while older odometry still waited for a tick was taken for
+            # time going back, after a clock that jumped ahead (a simulator that went on).
             self._early_odoms.append(odom)
+            self._take_early_odoms(self.now_ns())
             return
         self._use_odom(odom)
 

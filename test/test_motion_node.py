@@ -20,7 +20,10 @@ import time
 from motion_challenges.motion_node import MotionState
 from motion_challenges.prompts import RotationRequest
 from motion_challenges.rotate_robot import RotateRobot
+from nav_msgs.msg import Odometry
 from rclpy.parameter import Parameter
+from rclpy.serialization import serialize_message
+from rclpy.time import Time
 from sim_diffdrive.harness import angle_error
 from sim_diffdrive.runtime import EXIT_FAILED
 
@@ -74,3 +77,26 @@ def test_the_state_goes_waiting_running_settling_finished(graph):
                       MotionState.FINISHED]
     # A str Enum: code that compares with the names still works.
     assert node.state == 'finished'
+
+
+def test_odometry_is_used_in_stamp_order_after_the_clock_jumps_ahead(graph):
+    # Odometry at 1.0 s arrives with the clock at 1.0 s: it waits for the next tick.  The
+    # clock then jumps to 2.0 s (a simulator that went on without the motion) and odometry at
+    # 1.5 s arrives: it is used after the older one, never before it (which looked like time
+    # going back, and ended the run with the wrong reason).
+    node = rotate_robot(graph, mode='odom')
+    node.state = MotionState.RUNNING
+    clock = node.get_clock()
+
+    def odometry(stamp_s):
+        msg = Odometry()
+        msg.header.stamp = Time(seconds=stamp_s).to_msg()
+        return serialize_message(msg)
+    clock.set_ros_time_override(Time(seconds=1.0, clock_type=clock.clock_type))
+    node._on_odom(odometry(1.0))
+    assert node.odom is None  # waits for the tick after it
+    clock.set_ros_time_override(Time(seconds=2.0, clock_type=clock.clock_type))
+    node._on_odom(odometry(1.5))
+    node._take_early_odoms(node.now_ns())  # what the next tick does first
+    assert not node.done, node.exit_code
+    assert node.odom.stamp_ns == 1_500_000_000
