@@ -209,6 +209,7 @@ class MotionNode(Node):
             log = self.get_logger().info if exit_code == EXIT_OK else self.get_logger().error
             log(message)
         self.state = MotionState.FINISHED
+        self._early_odoms.clear()
         self.exit_code = exit_code
         self.done = True
         for timer in (self._tick_timer, self._watchdog):
@@ -227,15 +228,13 @@ class MotionNode(Node):
             if self.stop_ack_timeout > 0.0:
                 stopped = self.cmd_pub.wait_for_all_acked(
                     Duration(seconds=self.stop_ack_timeout))
-                unheard = [what for what, heard in (('the final stop', stopped),
-                                                    ('the lockstep goodbye', said_goodbye))
-                           if not heard]
+                unheard = ' and '.join(what for what, heard in (
+                    ('the final stop', stopped), ('the lockstep goodbye', said_goodbye))
+                    if not heard)
                 if unheard:
                     self.get_logger().warning(
-                        f'{" and ".join(unheard).capitalize()} '
-                        f'{"were" if len(unheard) > 1 else "was"} not acknowledged within '
-                        f'{self.stop_ack_timeout:g} s: a subscriber is gone or stalled, or the '
-                        'link is lossy')
+                        f'Not acknowledged within {self.stop_ack_timeout:g} s: {unheard} (a '
+                        'subscriber is gone or stalled, or the link is lossy)')
 
     # -- helpers for subclasses --------------------------------------------------------------
 
@@ -275,7 +274,7 @@ class MotionNode(Node):
     def _on_odom(self, msg):
         odom = OdomPose(msg)
         self._odom_wall = time.monotonic()
-        if self.sim_time:
+        if self.sim_time and self.state != MotionState.FINISHED:
             # In stamp order (the order it arrives in), through the queue: odometry from before
             # the clock used at once while older odometry still waited for a tick was taken for
             # time going back, after a clock that jumped ahead (a simulator that went on).

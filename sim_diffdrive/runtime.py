@@ -142,7 +142,7 @@ def run(make_node, args=None):
             # shutdown: once a motion whose simulator had been killed died there (SIGSEGV in
             # a QoS event handler's __exit__; rclpy issue 1644 is of the same family).
             if executor is not None:
-                executor.shutdown()
+                _shut_down(executor, logger)
             for node in nodes:
                 if not _destroy(node):
                     exit_code = EXIT_FAILED
@@ -154,6 +154,14 @@ def run(make_node, args=None):
 def _as_list(nodes):
     """Return nodes (one node, or a list or tuple of them) as a list."""
     return list(nodes) if isinstance(nodes, (list, tuple)) else [nodes]
+
+
+def _shut_down(executor, logger):
+    """Shut the executor down; a failure (or a second Ctrl-C) is logged, and cleanup goes on."""
+    try:
+        executor.shutdown()
+    except (Exception, KeyboardInterrupt) as error:
+        logger.error(f'Executor shutdown failed ({type(error).__name__}: {error})')
 
 
 def _destroy(node):

@@ -282,6 +282,19 @@ def test_the_owner_is_never_dropped_and_only_the_silent_are(joined):
     assert ledger.silent(3.5, 2.0) == []
 
 
+def test_time_the_owner_did_not_run_is_nobody_s_silence(joined):
+    ledger, owner = joined
+    ledger.receive(motion(owner.now, 0, 1, owner.now), owner.now, wall_s=1.0)
+    # The owner did not run from 1.5 s to 4.5 s: at 5.0 s the motion was silent for 1.0 s.
+    ledger.excuse(3.0, 5.0)
+    assert ledger.silent(5.0, 2.0) == []
+    assert ledger.silent(6.5, 2.0) == ['m']
+    # An answer handled after the stall (it waited in the queue) is no credit for the future.
+    ledger.receive(motion(owner.now, 0, 1, owner.now), owner.now, wall_s=7.0)
+    ledger.excuse(3.0, 7.0)
+    assert ledger.silent(9.5, 2.0) == ['m']
+
+
 def test_a_foreign_stale_stamp_never_holds_the_clock(joined):
     # The owner heard a member's command stamped at the step, then a foreign one stamped 0:
     # it keeps the highest stamp heard (MessageCounter), so nothing is owed.

@@ -15,6 +15,7 @@
 """The harness itself (sim_diffdrive.harness): processes, logs, and a graph's simulators."""
 
 import gc
+import os
 import signal
 import time
 
@@ -82,17 +83,20 @@ def test_runs_on_one_machine_never_share_a_block_of_domains(tmp_path):
         deadline = time.monotonic() + 20.0
         while not other.output().strip() and time.monotonic() < deadline:
             time.sleep(0.05)
+        assert other.output().strip().isdigit(), other.describe()
         others = int(other.output())
         claimed = [claim_domains(str(tmp_path)) for _ in range(24)]
         assert sorted(claimed + [others]) == list(range(1, 101, DOMAIN_BLOCK))
-        assert claim_domains(str(tmp_path)) in claimed + [others]  # all taken: one is shared
+        # All taken: a block is shared, and nothing more is locked.
+        assert claim_domains(str(tmp_path)) in claimed + [others]
+        assert len(graph_module._claims) == held + 24
         # A claim ends with the process that holds it, however it ends.
         stop(other, signal.SIGKILL)
         assert claim_domains(str(tmp_path)) == others
     finally:
         stop(other, signal.SIGKILL)
         for lock in graph_module._claims[held:]:
-            lock.close()
+            os.close(lock)
         del graph_module._claims[held:]
 
 

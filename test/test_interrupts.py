@@ -411,7 +411,7 @@ def test_simulator_restarted_mid_motion_is_noticed(graph, procs):
                             f'{case.expected}\n{proc.describe()}')
         # The killed simulator's subscriptions stay in discovery (its lease runs for seconds):
         # the motion cannot know that its final stop was heard, and says so.
-        if not case.restart and 'not acknowledged within' not in output:
+        if not case.restart and 'Not acknowledged within' not in output:
             problems.append(f'{case.name}: no word of the unacknowledged stop\n{output}')
         if case.restart:
             settle = time.monotonic()

@@ -255,18 +255,19 @@ def test_a_motion_the_simulator_went_on_without_fails_and_never_says_done(graph,
 
 def test_a_simulator_that_was_not_running_gives_nobody_up(graph, simulator):
     # The simulator itself stopped for longer than lockstep_timeout (0.5 s), three times
-    # mid-run (a machine too busy to run it): the motion's answers waited in its queue
-    # meanwhile, so nobody was silent.  (The old code gave up on something after 2 of 6 stops.)
+    # mid-turn (a machine too busy to run it): the motion's answers waited in its queue
+    # meanwhile, so nobody was silent.  (The old code gave something up in 4 runs of 4.)
     sim, probe, _ = simulator
     _, _, start_yaw = pose_of(probe.odom)
-    # A slow turn (3 s simulated), so that it is still turning at the third stop.
-    motion = start('rotate_robot', 'angular_speed_deg:=30.0', 'angle_deg:=90.0',
+    # A slow turn (9 s simulated), so that it still turns at the third stop.
+    motion = start('rotate_robot', 'angular_speed_deg:=10.0', 'angle_deg:=90.0',
                    'clockwise:=true', 'use_sim_time:=true')
     try:
         for _ in range(3):
-            assert graph.spin_until(lambda: probe.odom.twist.twist.angular.z != 0.0, 30.0)
             stamp = stamp_s(probe.odom)
-            assert graph.spin_until(lambda: stamp_s(probe.odom) > stamp + 0.1, 30.0)
+            assert graph.spin_until(lambda: stamp_s(probe.odom) > stamp + 0.1
+                                    and probe.odom.twist.twist.angular.z != 0.0, 30.0)
+            assert motion.poll() is None, motion.output()
             sim.send(signal.SIGSTOP)
             time.sleep(0.8)
             sim.send(signal.SIGCONT)

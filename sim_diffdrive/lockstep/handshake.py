@@ -218,10 +218,10 @@ class StepLedger:
             self.dropped[participant] = now_ns
             self.version += 1
 
-    def excuse(self, seconds):
+    def excuse(self, seconds, wall_s):
         """Count nobody silent for seconds in which the owner could not hear (it did not run)."""
         for member in self.members.values():
-            member.heard_wall += seconds
+            member.heard_wall = min(member.heard_wall + seconds, wall_s)
 
     def silent(self, wall_s, timeout_s):
         """Return the participants nothing was heard from for longer than timeout_s (wall)."""

@@ -58,8 +58,9 @@ RESEND_S = 0.01
 RESEND_MAX_S = 0.32
 # Weight of the newest step in the moving average of the wall time between steps.
 _STEP_WEIGHT = 0.1
-# The clock timer firing later than this beyond its period means the simulator itself did not
-# run meanwhile (a machine too busy to run it, a debugger) [s, wall]: see _own_stall.
+# A look at the step (the clock timer, or news) later than this beyond the timer's period means
+# the simulator did not listen meanwhile: it did not run (a machine too busy to run it, a
+# debugger) or was busy in a long callback of its own [s, wall]; see _own_stall.
 _STALLED_S = 0.05
 
 
@@ -160,8 +161,13 @@ class LockstepOwner:
         stalled = now - self._looked - self.clock.period_s()
         self._looked = now
         if stalled > _STALLED_S:
-            self._stalled_s += stalled
-            self.ledger.excuse(stalled)
+            # Only what fell after the step began counts against its hold.
+            self._stalled_s += min(stalled, max(now - self.clock.wall, 0.0))
+            self.ledger.excuse(stalled, now)
+
+    def rescheduled(self):
+        """Look from now on: the clock timer starts its period again (a new real_time_factor)."""
+        self._looked = time.monotonic()
 
     def _keep_schedule(self, wall, steps):
         """

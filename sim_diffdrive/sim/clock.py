@@ -219,6 +219,10 @@ class LockstepClock(_TimedClock):
     def period_s(self):
         return max(self.budget_s, _LOCKSTEP_TICK_S)
 
+    def set_real_time_factor(self, value):
+        super().set_real_time_factor(value)
+        self.owner.rescheduled()  # the time since the last look is no stall
+
     def _on_timer(self):
         self.owner.try_step()
 

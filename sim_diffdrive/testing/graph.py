@@ -29,7 +29,6 @@ always lands on the step it was meant for, whatever the machine's load.
 import fcntl
 import os
 import random
-import tempfile
 
 import rclpy
 from rclpy.context import Context
@@ -47,7 +46,9 @@ FREE_REAL_TIME_FACTOR = 10.0
 DOMAIN_VARIABLE = 'SIM_GRAPH_DOMAIN_ID'
 # Domains a run claims at once: one for each of up to this many pytest workers.
 DOMAIN_BLOCK = 4
-_claims = []  # the lock files this process holds (claim_domains)
+# Where runs lock their blocks of domains: one place for the whole machine.
+DOMAIN_LOCKS = '/tmp/sim_graph_domains'
+_claims = []  # the lock files (descriptors) this process holds (claim_domains)
 
 
 def isolated_domain_id():
@@ -73,23 +74,32 @@ def claim_domains(directory=None):
     """
     Claim a free block of domains for this process's lifetime; return the block's first domain.
 
-    A block is claimed by holding an exclusive lock on its file in directory (the temporary
-    directory's sim_graph_domains by default); the lock goes with the process, however it ends.
-    Blocks are tried in random order; when every one is held (25 runs at once), a random
-    block is shared.
+    A block is claimed by holding an exclusive lock on its file in directory (by default
+    DOMAIN_LOCKS, or SIM_GRAPH_DOMAIN_LOCKS: the same for every user and session, as domains
+    are the machine's); the lock goes with the process, however it ends.  Blocks are tried in
+    random order; when none can be claimed (25 runs at once), a random block is shared.
     """
     # Fast DDS maps a domain to UDP ports; 1..100 stays clear of 0 (everyone's default) and of
     # the top of the valid range.
     starts = list(range(1, 101, DOMAIN_BLOCK))
     random.SystemRandom().shuffle(starts)
-    directory = directory or os.path.join(tempfile.gettempdir(), 'sim_graph_domains')
-    os.makedirs(directory, exist_ok=True)
+    directory = directory or os.environ.get('SIM_GRAPH_DOMAIN_LOCKS', DOMAIN_LOCKS)
+    try:
+        os.makedirs(directory, exist_ok=True)
+        os.chmod(directory, 0o1777)  # every user's runs lock here (refused if not ours)
+    except OSError:
+        pass
     for start in starts:
-        lock = open(os.path.join(directory, f'{start}.lock'), 'a')
+        try:
+            # Read-only is enough for flock, so a file another user made serves as well.
+            lock = os.open(os.path.join(directory, f'{start}.lock'), os.O_RDONLY | os.O_CREAT,
+                           0o666)
+        except OSError:
+            continue
         try:
             fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError:
-            lock.close()
+            os.close(lock)
             continue
         _claims.append(lock)  # held open (and so locked) until this process ends
         return start

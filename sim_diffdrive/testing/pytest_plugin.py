@@ -17,7 +17,7 @@ The ``sim_graph`` pytest fixture: test a controller against the simulator, in lo
 
 Installing the package registers this module as a pytest plugin (entry point group
 ``pytest11``), so any test can take ``sim_graph``, a sim_diffdrive.harness.SimGraph on a
-fresh context.  The test session runs on one ROS domain that no other run on the machine holds
+fresh context.  Each test process (each xdist worker) runs on a ROS domain that no other run holds
 (graph.claim_domains; SIM_GRAPH_DOMAIN_ID pins one) with localhost-only discovery, exported
 as ROS_DOMAIN_ID and ROS_AUTOMATIC_DISCOVERY_RANGE so that processes a test starts join it::
 
