@@ -35,18 +35,14 @@ from geometry_msgs.msg import Twist
 from geometry_msgs.msg import TwistStamped
 from motion_challenges.controllers import CommandLog
 from motion_challenges.controllers import odometry_fault
-from motion_challenges.controllers import Pose
+from motion_challenges.odometry import OdomPose
 from nav_msgs.msg import Odometry
 from rclpy.clock import Clock
 from rclpy.clock import ClockType
 from rclpy.clock import JumpThreshold
 from rclpy.duration import Duration
 from rclpy.node import Node
-from rclpy.serialization import deserialize_message
-from sim_diffdrive.angles import yaw_from_quaternion
 from sim_diffdrive.angles import YawAccumulator
-from sim_diffdrive.cdr import read_odometry
-from sim_diffdrive.cdr import UnsupportedEncoding
 from sim_diffdrive.lockstep.participant import take_part
 from sim_diffdrive.parameters import declare
 from sim_diffdrive.parameters import Spec
@@ -107,22 +103,6 @@ class MotionState(str, enum.Enum):
     RUNNING = 'running'  # control() is called every tick
     SETTLING = 'settling'  # stopped; waiting for odometry that shows where the robot came to rest
     FINISHED = 'finished'  # done or given up: see exit_code
-
-
-class OdomPose(Pose):
-    """The Pose an Odometry message reports (position, yaw, stamp), read from its bytes."""
-
-    def __init__(self, data):
-        try:
-            stamp_ns, _, _, (x, y, _), orientation, twist = read_odometry(data)
-        except UnsupportedEncoding:  # not plain CDR: let rclpy read it
-            msg = deserialize_message(data, Odometry)
-            p, q, t = msg.pose.pose.position, msg.pose.pose.orientation, msg.twist.twist
-            stamp_ns = msg.header.stamp.sec * _NS + msg.header.stamp.nanosec
-            x, y, orientation, twist = p.x, p.y, (q.x, q.y, q.z, q.w), (t.linear.x, t.angular.z)
-        super().__init__(x, y, yaw_from_quaternion(*orientation), stamp_ns)
-        # What odometry says the robot did, for plot_file: (linear.x, angular.z).
-        self.twist = twist
 
 
 class MotionNode(Node):

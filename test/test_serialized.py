@@ -32,7 +32,7 @@ import time
 
 from geometry_msgs.msg import Twist
 from geometry_msgs.msg import TwistStamped
-from motion_challenges.motion_node import OdomPose
+from motion_challenges.odometry import OdomPose
 from nav_msgs.msg import Odometry
 import numpy as np
 import pytest
@@ -157,7 +157,7 @@ def test_commands_read_from_their_bytes_equal_rclpys_deserialize():
 
 
 def test_odometry_read_from_any_publishers_bytes_equals_rclpys_deserialize():
-    # A motion reads its odometry from the bytes (motion_node.OdomPose): frames of every length
+    # A motion reads its odometry from the bytes (odometry.OdomPose): frames of every length
     # (so every alignment of the doubles after them), any numbers, as any publisher sends them.
     rng = random.Random(11)
     for length in range(21):
