@@ -195,19 +195,30 @@ class MotionFleet(Node):
     def shutdown_hook(self):
         """Wait for the motions' final stops to be acknowledged; say how each motion ended."""
         deadline = time.monotonic() + MotionNode.stop_ack_timeout
-        for node in self.motions if self.context.ok() else ():
-            remaining = deadline - time.monotonic()
-            if remaining <= 0.0:
-                break
-            node.cmd_pub.wait_for_all_acked(Duration(seconds=remaining))
+        unheard = []
+        for (robot, _, _), node in zip(self.plan, self.motions) if self.context.ok() else ():
+            # Once the time is up, each still gets a look: what was acknowledged meanwhile.
+            heard = node.cmd_pub.wait_for_all_acked(Duration(seconds=self._left(deadline)))
             if node.lockstep is not None:
-                node.lockstep.wait_acknowledged(max(deadline - time.monotonic(), 0.001))
+                heard = node.lockstep.wait_acknowledged(self._left(deadline)) and heard
+            if not heard:
+                unheard.append(robot)
+        if unheard:
+            self.get_logger().warning(
+                f'Not acknowledged within {MotionNode.stop_ack_timeout:g} s: the final stop or '
+                f'the lockstep goodbye of {", ".join(unheard)} (a subscriber is gone or '
+                'stalled, or the link is lossy)')
         ended = []
         for (robot, _, motion), node in zip(self.plan, self.motions):
             state = f'exit code {node.exit_code}' if node.done else 'stopped before the end'
             ended.append(f'{robot} {motion}: {state}')
         if ended:
             self.get_logger().info('Motions: ' + '; '.join(ended))
+
+    @staticmethod
+    def _left(deadline):
+        """Return the seconds until deadline [monotonic], at least 1 ms."""
+        return max(deadline - time.monotonic(), 0.001)
 
 
 def make_fleet():

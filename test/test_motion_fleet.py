@@ -205,16 +205,16 @@ ROBOTS = ['robot1', 'robot2', 'robot3']
 
 
 def simulator(procs, graph, *params):
-    """Start one unicycle_sim for ROBOTS, robot i at start_of(i); return a watcher per robot."""
+    """Start one unicycle_sim for ROBOTS, robot i at start_of(i); return it and a watcher each."""
     poses = ','.join(repr(float(v)) for v in initial_poses(ROBOTS))
     # Lockstep sets the pace: the factor only bounds it (and the pace once the motions left).
-    procs('unicycle_sim', 'unicycle_sim', *ros_params(
+    sim = procs('unicycle_sim', 'unicycle_sim', *ros_params(
         'publish_clock:=true', 'real_time_factor:=50.0', f'robots:=[{",".join(ROBOTS)}]',
         f'initial_poses:=[{poses}]', *params))
     watchers = [graph.listener(robot) for robot in ROBOTS]
     assert graph.spin_until(lambda: all(w.odom is not None for w in watchers), 20.0), \
         'no odometry from the simulator(s)'
-    return watchers
+    return sim, watchers
 
 
 def wait_for_exit(graph, process, timeout=60.0):
@@ -247,7 +247,7 @@ def test_a_parameter_mistake_exits_2_and_names_the_parameter(graph, procs, param
 
 
 def test_three_robots_from_the_shipped_params_file_each_end_exact(graph, procs):
-    watchers = simulator(procs, graph)
+    _, watchers = simulator(procs, graph)
     fleet = procs('motion_fleet', 'motion_fleet', '--ros-args', '--params-file', str(CONFIG),
                   *ros_params('goal_distance:=0.3', 'pause:=0.1', 'legs:=1')[1:])
     code, output = wait_for_exit(graph, fleet)
@@ -267,7 +267,7 @@ def test_three_robots_from_the_shipped_params_file_each_end_exact(graph, procs):
 
 def test_ctrl_c_stops_every_robot(graph, procs):
     # The simulator keeps each last command for ever: only the motions' final stops stop them.
-    watchers = simulator(procs, graph, 'cmd_vel_timeout:=0.0')
+    _, watchers = simulator(procs, graph, 'cmd_vel_timeout:=0.0')
     fleet = procs('motion_fleet', 'motion_fleet', *ros_params(
         f'robots:=[{",".join(ROBOTS)}]', 'motions:=[circle_back_and_forth]', sim_time=True))
     assert graph.spin_until(lambda: all(is_moving(w.odom) for w in watchers), 20.0), \
@@ -289,3 +289,18 @@ def test_ctrl_c_stops_every_robot(graph, procs):
         stopped = after_rest(watcher)
         assert not any(is_moving(odom) for odom in stopped), robot
         assert len({pose_of(odom) for odom in stopped}) == 1, robot
+
+
+def test_a_fleet_names_the_robots_whose_final_stops_nobody_acknowledged(graph, procs):
+    # The simulator is killed mid-run; its subscriptions stay in discovery for seconds, so
+    # nothing acknowledges the final stops of the fleet's motions when it is stopped.
+    sim, watchers = simulator(procs, graph)
+    fleet = procs('motion_fleet', 'motion_fleet', *ros_params(
+        f'robots:=[{",".join(ROBOTS)}]', 'motions:=[circle_back_and_forth]', sim_time=True))
+    assert graph.spin_until(lambda: all(is_moving(w.odom) for w in watchers), 20.0), \
+        fleet.describe()
+    sim.send(signal.SIGKILL)
+    sim.wait(10.0)
+    output = stop(fleet, signal.SIGINT)
+    assert ('Not acknowledged within 0.2 s: the final stop or the lockstep goodbye of '
+            f'{", ".join(ROBOTS)}') in output, output
