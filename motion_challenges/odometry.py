@@ -14,14 +14,13 @@
 
 """A motion's view of its robot's odometry: the few numbers it needs, read from the bytes."""
 
+from motion_challenges.controllers import NS
 from motion_challenges.controllers import Pose
 from nav_msgs.msg import Odometry
 from rclpy.serialization import deserialize_message
 from sim_diffdrive.angles import yaw_from_quaternion
 from sim_diffdrive.cdr import read_odometry
 from sim_diffdrive.cdr import UnsupportedEncoding
-
-_NS = 1_000_000_000
 
 
 class OdomPose(Pose):
@@ -33,7 +32,7 @@ class OdomPose(Pose):
         except UnsupportedEncoding:  # not plain CDR: let rclpy read it
             msg = deserialize_message(data, Odometry)
             p, q, t = msg.pose.pose.position, msg.pose.pose.orientation, msg.twist.twist
-            stamp_ns = msg.header.stamp.sec * _NS + msg.header.stamp.nanosec
+            stamp_ns = msg.header.stamp.sec * NS + msg.header.stamp.nanosec
             x, y, orientation, twist = p.x, p.y, (q.x, q.y, q.z, q.w), (t.linear.x, t.angular.z)
         super().__init__(x, y, yaw_from_quaternion(*orientation), stamp_ns)
         # What odometry says the robot did, for plot_file: (linear.x, angular.z).
