@@ -143,9 +143,13 @@ def test_the_browser_shows_the_robot_driving_up_the_screen(graph, browser):
         rows, columns = track[:, 0], track[:, 1]
         assert start[:, 0].min() < rows.max() < start[:, 0].max()  # from where it stood
         assert columns.max() - columns.min() < (rows.max() - rows.min()) / 2  # straight up
-        # Above where it stood, give or take the viewer's camera: it frames the scene anew as
-        # the track grows, which once moved the robot's column by 16 pixels (of 100 travelled).
-        assert abs(np.median(columns) - np.median(start[:, 1])) < (rows.max() - rows.min()) / 4
+        # Above where it stood, judged in this one picture: where it stood is where its track
+        # begins (the lowest rows).  Not against the first picture's columns: the viewer frames
+        # the scene anew as the track grows, and between two pictures it once moved the robot
+        # 16 pixels sideways, once 82, with nothing wrong in the run.
+        top = columns[rows <= rows.min() + 10]  # the robot, now
+        bottom = columns[rows >= rows.max() - 10]  # the track where it began
+        assert abs(np.median(top) - np.median(bottom)) < (rows.max() - rows.min()) / 4
         assert tab.outside == []  # the page asked nothing of any other machine
     finally:
         tab.close()
