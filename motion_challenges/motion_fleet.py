@@ -44,6 +44,7 @@ from rclpy.validate_namespace import validate_namespace
 from sim_diffdrive.parameters import declare
 from sim_diffdrive.parameters import ParameterError
 from sim_diffdrive.parameters import Spec
+from sim_diffdrive.participant import take_part
 from sim_diffdrive.runtime import run
 
 _MOTIONS = {
@@ -114,9 +115,12 @@ def _robot_namespace(namespace, robot):
     return robot_ns
 
 
-def build_fleet(context, robots, motions, namespace='/', **overrides):
+def build_fleet(context, robots, motions, namespace='/', participant=None, **overrides):
     """
     Build one motion node per robot in context, each in its robot's namespace; return them.
+
+    On sim time each motion takes part in the lockstep on its own, or through ``participant``
+    (a lockstep Participant of another node) when given: then the process answers once a step.
 
     ``overrides`` are parameters every motion node gets (``use_sim_time=True``,
     ``goal_distance=0.3``; a motion ignores those it does not have), on top of the context's
@@ -129,7 +133,8 @@ def build_fleet(context, robots, motions, namespace='/', **overrides):
     try:
         for robot, robot_ns, motion in fleet_plan(robots, motions, namespace):
             try:
-                nodes.append(_build_motion(context, robot_ns, motion, parameter_overrides))
+                nodes.append(_build_motion(context, robot_ns, motion, parameter_overrides,
+                                           participant))
             except ParameterError as error:
                 raise ParameterError(f'robot {robot!r} ({motion}): {error}') from None
     except BaseException:
@@ -139,11 +144,12 @@ def build_fleet(context, robots, motions, namespace='/', **overrides):
     return nodes
 
 
-def _build_motion(context, robot_ns, motion, parameter_overrides):
+def _build_motion(context, robot_ns, motion, parameter_overrides, participant):
     # Node-local remaps win over the process's: a global -r __ns:= (or __node:=) would
     # otherwise put every motion in one namespace under one name.
     node = _MOTIONS[motion](
         namespace=robot_ns, context=context, parameter_overrides=parameter_overrides,
+        participant=participant,
         cli_args=['--ros-args', '-r', f'__ns:={robot_ns}', '-r', f'__node:={motion}'])
     if isinstance(node, RotateRobot):
         try:
@@ -180,11 +186,14 @@ class MotionFleet(Node):
         self.params = declare(self, PARAMETERS)
         self.plan = fleet_plan(self.params.robots, self.params.motions, self.get_namespace())
         self.motions = []
+        # On sim time the fleet is one participant of the lockstep: one answer per step for
+        # all its motions, not one each (each costs the simulator a message and a look).
+        self.lockstep = take_part(self) if self.get_parameter('use_sim_time').value else None
 
     def build(self):
         """Build every robot's motion in this node's context; return them."""
         self.motions = build_fleet(self.context, self.params.robots, self.params.motions,
-                                   self.get_namespace())
+                                   self.get_namespace(), participant=self.lockstep)
         for (robot, _, motion), node in zip(self.plan, self.motions):
             node.stop_ack_timeout = 0.0
             self.get_logger().info(
@@ -196,6 +205,8 @@ class MotionFleet(Node):
         """Wait for the motions' final stops to be acknowledged; say how each motion ended."""
         deadline = time.monotonic() + MotionNode.stop_ack_timeout
         unheard = []
+        if self.lockstep is not None and self.context.ok():
+            self.lockstep.leave(ack_timeout=0.0)  # the goodbye, after every final stop
         for (robot, _, _), node in zip(self.plan, self.motions) if self.context.ok() else ():
             # Once the time is up, each still gets a look: what was acknowledged meanwhile.
             heard = node.cmd_pub.wait_for_all_acked(Duration(seconds=self._left(deadline)))

@@ -110,7 +110,9 @@ class MotionNode(Node):
     Base class: subclasses set ``needs_odom`` and implement ``begin``, ``control``, ``summary``.
 
     ``control(now_ns)`` is called every tick once started; it returns (linear, angular) to
-    publish, or None when the motion is complete.
+    publish, or None when the motion is complete.  On sim time it takes part in the
+    simulator's lockstep, on its own or, given ``participant``, answering with that
+    participant's other nodes (motion_fleet.py: one answer per step for a whole fleet).
     """
 
     needs_odom = False
@@ -118,7 +120,7 @@ class MotionNode(Node):
     # fleet of motions in one process sets 0 and waits once for all (motion_fleet.py).
     stop_ack_timeout = 0.2
 
-    def __init__(self, node_name, specs, **kwargs):
+    def __init__(self, node_name, specs, participant=None, **kwargs):
         super().__init__(node_name, **kwargs)
         self.params = declare(self, tuple(specs) + COMMON_PARAMETERS)
         self.period = 1.0 / self.params.rate_hz
@@ -162,7 +164,8 @@ class MotionNode(Node):
         # step's odometry or clock crossed the graph first (runs are bit-identical).
         self.sim_time = self.get_parameter('use_sim_time').value
         self._early_odoms = []
-        self.lockstep = take_part(self) if self.sim_time else None
+        self.lockstep = None if not self.sim_time else (
+            take_part(self) if participant is None else participant.add(self))
 
     @property
     def trajectory(self):

@@ -23,6 +23,7 @@ Parameter mistakes are refused with exit code 2 and the parameter named.
 
 import math
 from pathlib import Path
+import re
 import signal
 
 from motion_challenges.circle_back_and_forth import CircleBackAndForth
@@ -247,7 +248,7 @@ def test_a_parameter_mistake_exits_2_and_names_the_parameter(graph, procs, param
 
 
 def test_three_robots_from_the_shipped_params_file_each_end_exact(graph, procs):
-    _, watchers = simulator(procs, graph)
+    sim, watchers = simulator(procs, graph)
     fleet = procs('motion_fleet', 'motion_fleet', '--ros-args', '--params-file', str(CONFIG),
                   *ros_params('goal_distance:=0.3', 'pause:=0.1', 'legs:=1')[1:])
     code, output = wait_for_exit(graph, fleet)
@@ -263,6 +264,11 @@ def test_three_robots_from_the_shipped_params_file_each_end_exact(graph, procs):
         assert 'error 0.000 mm' in closing or 'error 0.0000 deg' in closing, closing
         assert not is_moving(odom), closing
         assert_at(odom, end_of(motion, start_of(i)), closing)
+    # The fleet took part as one: one answer a step for its three motions, and one goodbye.
+    sim_output = stop(sim)
+    assert re.findall(r'Lockstep: (\S+) takes part from .*; (\d+) participant', sim_output) \
+        == [('/motion_fleet', '1')], sim_output
+    assert re.findall(r'Lockstep: (\S+) left at', sim_output) == ['/motion_fleet'], sim_output
 
 
 def test_ctrl_c_stops_every_robot(graph, procs):

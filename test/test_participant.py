@@ -188,3 +188,76 @@ def test_answers_again_on_a_repeated_clock_and_never_after_leaving(ros_context, 
     finally:
         executor.shutdown()
         owner.destroy_node()
+
+
+def test_a_process_answers_once_a_step_for_all_its_nodes(ros_context, node):
+    # A fleet: the simulator waits for one participant, not one per motion.  Each node counts
+    # as before; the answer sums what they sent and says a topic is handled as far as every
+    # node that handles it has got.
+    other = Node('controller2', context=ros_context,
+                 parameter_overrides=[Parameter('use_sim_time', value=True)])
+    late = Node('late', context=ros_context,
+                parameter_overrides=[Parameter('use_sim_time', value=True)])
+    owner = Node('owner', context=ros_context)
+    answers = []
+    owner.create_subscription(String, '/clock/answers',
+                              lambda msg: answers.append(Answer.decode(msg.data)), ANSWER_QOS)
+    pubs = [each.create_publisher(Twist, 'cmd_vel', 10) for each in (node, other)]
+    subs = [each.create_subscription(Odometry, 'odom', lambda msg: None, 10)
+            for each in (node, other)]
+    lockstep = take_part(node)
+    member = lockstep.add(other)
+    clocks = [next(sub for sub in each.subscriptions if sub.msg_type is ClockMsg)
+              for each in (node, other)]
+    executor = SingleThreadedExecutor(context=ros_context)
+    for each in (node, other, owner):
+        executor.add_node(each)
+
+    def spin_until(predicate):
+        for _ in range(1000):
+            if predicate():
+                return True
+            executor.spin_once(timeout_sec=0.01)
+        return predicate()
+
+    def odom(seconds):
+        msg = Odometry()
+        msg.header.stamp = Time(seconds=seconds).to_msg()
+        return msg
+
+    try:
+        assert spin_until(lambda: lockstep._publisher.get_subscription_count() == 1)
+        pubs[0].publish(Twist())
+        pubs[1].publish(Twist())
+        subs[0].callback(odom(1))
+        subs[0].callback(odom(2))
+        subs[1].callback(odom(1))
+        clocks[0].callback(ClockMsg(clock=Time(seconds=2).to_msg()))
+        executor.spin_once(timeout_sec=0.2)
+        assert answers == []  # the other node has not seen the step yet
+        clocks[1].callback(ClockMsg(clock=Time(seconds=2).to_msg()))
+        assert spin_until(lambda: len(answers) == 1)
+        answer = answers[0]
+        assert answer.participant == lockstep.id and answer.node == '/controller'
+        assert answer.step_ns == 2_000_000_000 and not answer.leaving
+        assert answer.sent == {'/cmd_vel': 2} and answer.heard == {'/odom': 1}
+        assert answer.heard_stamp == {'/odom': 1_000_000_000}
+        with pytest.raises(RuntimeError, match='after it has answered'):
+            lockstep.add(late)
+        # One leaves after a final stop: that stop still counts, its odometry no longer.
+        pubs[1].publish(Twist())
+        assert member.leave(ack_timeout=1.0)
+        assert spin_until(lambda: len(answers) == 2)
+        assert answers[1].sent == {'/cmd_vel': 3} and answers[1].heard == {'/odom': 2}
+        assert answers[1].heard_stamp == {'/odom': 2_000_000_000} and not answers[1].leaving
+        pubs[1].publish(Twist())  # after it left: not counted
+        clocks[0].callback(ClockMsg(clock=Time(seconds=3).to_msg()))
+        assert spin_until(lambda: len(answers) == 3)
+        assert answers[2].step_ns == 3_000_000_000 and answers[2].sent == {'/cmd_vel': 3}
+        # The last to go says goodbye for all.
+        assert lockstep.leave(ack_timeout=1.0)
+        assert spin_until(lambda: len(answers) == 4) and answers[3].leaving
+    finally:
+        executor.shutdown()
+        for each in (other, late, owner):
+            each.destroy_node()

@@ -20,6 +20,12 @@ The node must run on simulated time (``use_sim_time``).  From then on the simula
 and the messages it published have been handled by the simulator (see handshake.py).  The
 node's subscription and timer callbacks and its publishers are counted by its MessageCounter
 (counter.py), so the node's code does not change.
+
+A process that runs several nodes on sim time can make them one participant:
+``take_part(first).add(node)`` for each other node, before spinning.  The simulator then gets
+one answer per step for all of them (motion_fleet runs a fleet of motions so), sent once every
+node is settled, with their counts combined: what they sent summed, a topic handled as far as
+every node that handles it has got.
 """
 
 import time
@@ -46,12 +52,16 @@ ROSTER_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
 
 
 class Participant:
-    """A node's side of the lockstep handshake (see the module docstring)."""
+    """
+    A process's side of the lockstep handshake (see the module docstring).
+
+    It answers for the node it was made on and for every node added to it (``add``): one
+    answer per step for them all, once each is settled, so a process that runs many nodes (a
+    fleet of motions) costs the simulator one participant, not one per node.
+    """
 
     def __init__(self, node):
-        if not node.get_parameter('use_sim_time').value:
-            raise ValueError(f'{node.get_fully_qualified_name()} cannot take part in lockstep: '
-                             'use_sim_time is false')
+        _check_sim_time(node)
         self.node = node
         self.id = f'{node.get_fully_qualified_name()}#{uuid.uuid4().hex[:8]}'
         self.owner = None
@@ -66,14 +76,43 @@ class Participant:
         self.dropped_ns = None
         self._executor_checked = False
         # The clock this node runs on (its TimeSource's subscription, remapped or not).
-        clock_topic = next((sub.topic_name for sub in node.subscriptions
-                            if sub.msg_type is ClockMsg), '/clock')
-        self._answer_topic = answer_topic(clock_topic)
+        self._clock_topic = _clock_topic(node)
+        self._answer_topic = answer_topic(self._clock_topic)
         self._publisher = node.create_publisher(String, self._answer_topic, ANSWER_QOS)
-        node.create_subscription(String, roster_topic(clock_topic), self._on_roster,
+        node.create_subscription(String, roster_topic(self._clock_topic), self._on_roster,
                                  ROSTER_QOS)
-        self.counter = MessageCounter.of(node, clock_topic, timers=True)
-        self.counter.listeners.append(self._answer_if_settled)
+        # Every node answered for, with its counter; the clock time each is settled at (None:
+        # not settled), and how many are settled at each time, so a callback looks at its own
+        # node only.
+        self._nodes = {}
+        self._active = 0
+        self._settled_at = {}
+        self.counter = self._answer_for(node)
+
+    def add(self, node):
+        """
+        Answer for node too, from now on; return its view of this participant (a Member).
+
+        Add a process's nodes before it answers the first time (once the simulator is
+        found): counts are summed from the nodes' start.
+        """
+        _check_sim_time(node)
+        if self._last is not None or self.left:
+            raise RuntimeError(f'{node.get_fully_qualified_name()} cannot join '
+                               f'{self.node.get_fully_qualified_name()} in lockstep after it '
+                               'has answered: add nodes before spinning')
+        if _clock_topic(node) != self._clock_topic:
+            raise ValueError(f'{node.get_fully_qualified_name()} runs on '
+                             f'{_clock_topic(node)}, not on {self._clock_topic}')
+        self._answer_for(node)
+        return Member(self, node)
+
+    def _answer_for(self, node):
+        counter = MessageCounter.of(node, self._clock_topic, timers=True)
+        self._nodes[node] = _NodeState(counter)
+        self._active += 1
+        counter.listeners.append(lambda: self._answer_if_settled(node))
+        return counter
 
     @property
     def owner_present(self):
@@ -85,47 +124,71 @@ class Participant:
         return self.roster is not None and topic in self.roster.heard_topics
 
     def settled(self):
-        """Return whether the node has run everything due at the latest clock it has seen."""
-        clock_ns = self.counter.clock_ns
-        if clock_ns is None or self.node.get_clock().now().nanoseconds != clock_ns:
-            return False
-        for timer in self.node.timers:
-            if timer.is_canceled() or timer.clock.clock_type != ClockType.ROS_TIME:
-                continue
-            due = timer.time_until_next_call()
-            if due is not None and due <= 0:
-                return False
-        return True
+        """Return whether every node answered for has run everything due at one clock time."""
+        times = {_settled_ns(node, state.counter) for node, state in self._nodes.items()
+                 if state.active}
+        return len(times) == 1 and None not in times
 
     def answer(self, leaving=False):
         """
-        Publish this node's answer, unless nobody listens or it says nothing new.
+        Publish the answer, unless nobody listens or it says nothing new.
 
         An answer already sent is sent again when /clock came again since: the simulator
         re-sends /clock while it waits, so an answer lost on the way is repeated too.
         """
         if self.left or self._publisher.get_subscription_count() == 0:
             return  # gone, or no simulator steps in lockstep (or none yet): spare the hot path
-        counter = self.counter
-        answer = Answer(self.id, self.node.get_fully_qualified_name(), counter.clock_ns or 0,
-                        dict(counter.sent), dict(counter.heard), leaving,
-                        dict(counter.sent_stamp), dict(counter.heard_stamp))
-        repeated_clock = counter.clock_messages != self._last_clock_messages
+        step_ns, clock_messages, counts = self._totals()
+        answer = Answer(self.id, self.node.get_fully_qualified_name(), step_ns, *counts[:2],
+                        leaving, *counts[2:])
+        repeated_clock = clock_messages != self._last_clock_messages
         if (answer == self._last and not repeated_clock) or not self.node.context.ok():
             return
         self._last = answer
-        self._last_clock_messages = counter.clock_messages
+        self._last_clock_messages = clock_messages
         msg = String()
         msg.data = answer.encode()
         self._publisher.publish(msg)
 
+    def _totals(self):
+        """Return (step [ns], /clock messages, (sent, heard, sent_stamp, heard_stamp))."""
+        states = list(self._nodes.values())
+        if len(states) == 1:  # one node: its own counts
+            c = states[0].counter
+            return c.clock_ns or 0, c.clock_messages, (
+                dict(c.sent), dict(c.heard), dict(c.sent_stamp), dict(c.heard_stamp))
+        sent, heard, sent_stamp, heard_stamp = {}, {}, {}, {}
+        step_ns, clock_messages, stampless = 0, 0, set()
+        for state in states:
+            c = state.counter
+            # What a node sent counts for good (a gone node's last stop too); what it heard,
+            # only while it is answered for: a topic counts as handled by all that handle it.
+            for topic, count in (c.sent if state.active else state.sent).items():
+                sent[topic] = sent.get(topic, 0) + count
+            for topic, stamp in (c.sent_stamp if state.active else state.sent_stamp).items():
+                sent_stamp[topic] = max(sent_stamp.get(topic, stamp), stamp)
+            if not state.active:
+                continue
+            step_ns = max(step_ns, c.clock_ns or 0)
+            clock_messages += c.clock_messages
+            for topic, count in c.heard.items():
+                heard[topic] = min(heard.get(topic, count), count)
+                stamp = c.heard_stamp.get(topic)
+                if stamp is None:
+                    stampless.add(topic)
+                else:
+                    heard_stamp[topic] = min(heard_stamp.get(topic, stamp), stamp)
+        for topic in stampless:  # as a node that has heard no stamp yet says none
+            heard_stamp.pop(topic, None)
+        return step_ns, clock_messages, (sent, heard, sent_stamp, heard_stamp)
+
     def leave(self, ack_timeout=0.5):
         """
-        Tell the simulator not to wait for this node any more (call before destroying it).
+        Tell the simulator not to wait for this participant any more (before destroying it).
 
-        Final: nothing is answered afterwards.  Waits up to ack_timeout [s, wall] until the
-        simulator has the goodbye, so it goes on at once rather than after lockstep_timeout;
-        returns False when it did not have it by then.
+        Final, for every node answered for: nothing is answered afterwards.  Waits up to
+        ack_timeout [s, wall] until the simulator has the goodbye, so it goes on at once rather
+        than after lockstep_timeout; returns False when it did not have it by then.
         """
         acknowledged = True
         if self._last is not None and not self.left:
@@ -139,19 +202,54 @@ class Participant:
         """Wait up to timeout [s, wall] until the simulator has every answer sent (a goodbye)."""
         return self._publisher.wait_for_all_acked(Duration(seconds=timeout))
 
-    def _answer_if_settled(self):
+    def _leave_node(self, node, ack_timeout):
+        """Stop answering for node (its last messages still count); see Member.leave."""
+        state = self._nodes[node]
+        if state.active:
+            state.sent = dict(state.counter.sent)
+            state.sent_stamp = dict(state.counter.sent_stamp)
+            self._mark(state, None)
+            state.active = False
+            self._active -= 1
+        if not self._active:
+            return self.leave(ack_timeout)
+        times = {s.settled_ns for s in self._nodes.values() if s.active}
+        if None not in times and len(times) == 1:
+            self.answer()  # its last messages: what the simulator waits for now
+        return self.wait_acknowledged(ack_timeout) if ack_timeout > 0.0 else True
+
+    def _answer_if_settled(self, node):
         if not self._executor_checked:
-            self._check_executor()
-        if self.settled():
+            self._check_executor(node)
+        state = self._nodes[node]
+        if not state.active:
+            return
+        settled_ns = _settled_ns(node, state.counter)
+        self._mark(state, settled_ns)
+        if settled_ns is not None and self._settled_at[settled_ns] == self._active:
             self.answer()
 
-    def _check_executor(self):
+    def _mark(self, state, settled_ns):
+        """Note the time node's state is settled at (None: not settled)."""
+        if state.settled_ns == settled_ns:
+            return
+        if state.settled_ns is not None:
+            left = self._settled_at[state.settled_ns] - 1
+            if left:
+                self._settled_at[state.settled_ns] = left
+            else:
+                del self._settled_at[state.settled_ns]
+        if settled_ns is not None:
+            self._settled_at[settled_ns] = self._settled_at.get(settled_ns, 0) + 1
+        state.settled_ns = settled_ns
+
+    def _check_executor(self, node):
         # A MultiThreadedExecutor may take a due timer and run its callback later on another
         # thread: the node would look settled in between and answer before its command.
-        executor = self.node.executor
+        executor = node.executor
         if isinstance(executor, MultiThreadedExecutor):
             raise RuntimeError(
-                f'{self.node.get_fully_qualified_name()} cannot take part in lockstep under a '
+                f'{node.get_fully_qualified_name()} cannot take part in lockstep under a '
                 f'{type(executor).__name__}: its answers need one callback at a time; spin it '
                 'with a SingleThreadedExecutor or rclpy.experimental.EventsExecutor')
         self._executor_checked = executor is not None
@@ -176,6 +274,82 @@ class Participant:
             self.node.get_logger().info(
                 f'Taking part in lockstep with {roster.owner}' if joined
                 else f'No longer in lockstep with {roster.owner}')
+
+
+class Member:
+    """
+    A node's view of the Participant that answers for it with other nodes (Participant.add).
+
+    What the simulator says (joined, the roster, a drop) is the participant's; ``leave()``
+    is this node's alone: the others go on, and the last to leave says goodbye for all.
+    """
+
+    def __init__(self, participant, node):
+        self.participant = participant
+        self.node = node
+        self.counter = participant._nodes[node].counter
+        self.id = participant.id
+
+    owner = property(lambda self: self.participant.owner)
+    joined = property(lambda self: self.participant.joined)
+    roster = property(lambda self: self.participant.roster)
+    roster_wall = property(lambda self: self.participant.roster_wall)
+    dropped_ns = property(lambda self: self.participant.dropped_ns)
+    owner_present = property(lambda self: self.participant.owner_present)
+
+    def counted_on(self, topic):
+        """Return whether some node that handles topic is counted (see Participant)."""
+        return self.participant.counted_on(topic)
+
+    def leave(self, ack_timeout=0.5):
+        """
+        Stop answering for this node (call before destroying it); the others go on.
+
+        Its messages so far (a final stop) are still waited for.  Waits up to ack_timeout
+        [s, wall] until the simulator has what was answered; False when it did not by then.
+        """
+        return self.participant._leave_node(self.node, ack_timeout)
+
+    def wait_acknowledged(self, timeout):
+        """Wait up to timeout [s, wall] until the simulator has every answer sent."""
+        return self.participant.wait_acknowledged(timeout)
+
+
+class _NodeState:
+
+    def __init__(self, counter):
+        self.counter = counter
+        self.active = True
+        self.settled_ns = None
+        # What it had sent when it stopped being answered for.
+        self.sent = {}
+        self.sent_stamp = {}
+
+
+def _check_sim_time(node):
+    if not node.get_parameter('use_sim_time').value:
+        raise ValueError(f'{node.get_fully_qualified_name()} cannot take part in lockstep: '
+                         'use_sim_time is false')
+
+
+def _clock_topic(node):
+    """Return the clock topic node runs on (its TimeSource's subscription, remapped or not)."""
+    return next((sub.topic_name for sub in node.subscriptions if sub.msg_type is ClockMsg),
+                '/clock')
+
+
+def _settled_ns(node, counter):
+    """Return the clock time [ns] node has run everything due at, or None."""
+    clock_ns = counter.clock_ns
+    if clock_ns is None or node.get_clock().now().nanoseconds != clock_ns:
+        return None
+    for timer in node.timers:
+        if timer.is_canceled() or timer.clock.clock_type != ClockType.ROS_TIME:
+            continue
+        due = timer.time_until_next_call()
+        if due is not None and due <= 0:
+            return None
+    return clock_ns
 
 
 def take_part(node):
