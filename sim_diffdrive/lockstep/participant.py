@@ -281,7 +281,8 @@ class Member:
     A node's view of the Participant that answers for it with other nodes (Participant.add).
 
     What the simulator says (joined, the roster, a drop) is the participant's; ``leave()``
-    is this node's alone: the others go on, and the last to leave says goodbye for all.
+    is this node's alone: the others go on (the participant's own ``leave()`` says goodbye for
+    all of them).
     """
 
     def __init__(self, participant, node):
