@@ -139,6 +139,8 @@ def build_fleet(context, robots, motions, namespace='/', participant=None, **ove
                 raise ParameterError(f'robot {robot!r} ({motion}): {error}') from None
     except BaseException:
         for node in nodes:
+            if node.lockstep is not None:
+                node.lockstep.leave(ack_timeout=0.0)  # a participant's other nodes go on
             node.destroy_node()
         raise
     return nodes
@@ -194,6 +196,11 @@ class MotionFleet(Node):
         """Build every robot's motion in this node's context; return them."""
         self.motions = build_fleet(self.context, self.params.robots, self.params.motions,
                                    self.get_namespace(), participant=self.lockstep)
+        if self.lockstep is not None and not any(map(self._answered_for, self.motions)):
+            # No motion on the fleet's clock (a params file put them on wall time, say): the
+            # simulator need not wait for this node.
+            self.lockstep.leave(ack_timeout=0.0)
+            self.lockstep = None
         for (robot, _, motion), node in zip(self.plan, self.motions):
             node.stop_ack_timeout = 0.0
             self.get_logger().info(
@@ -204,27 +211,38 @@ class MotionFleet(Node):
     def shutdown_hook(self):
         """Wait for the motions' final stops to be acknowledged; say how each motion ended."""
         deadline = time.monotonic() + MotionNode.stop_ack_timeout
-        unheard = []
-        if self.lockstep is not None and self.context.ok():
-            self.lockstep.leave(ack_timeout=0.0)  # the goodbye, after every final stop
-        for (robot, _, _), node in zip(self.plan, self.motions) if self.context.ok() else ():
-            # Once the time is up, each still gets a look: what was acknowledged meanwhile.
-            heard = node.cmd_pub.wait_for_all_acked(Duration(seconds=self._left(deadline)))
-            if node.lockstep is not None:
-                heard = node.lockstep.wait_acknowledged(self._left(deadline)) and heard
-            if not heard:
-                unheard.append(robot)
+        stops, goodbyes, unheard = [], [], []
+        if self.context.ok():
+            if self.lockstep is not None:
+                self.lockstep.leave(ack_timeout=0.0)  # the goodbye, after every final stop
+            for (robot, _, _), node in zip(self.plan, self.motions):
+                # Once the time is up, each still gets a look: what was acknowledged meanwhile.
+                if not node.cmd_pub.wait_for_all_acked(Duration(seconds=self._left(deadline))):
+                    stops.append(robot)
+                if node.lockstep is not None and not self._answered_for(node) and not (
+                        node.lockstep.wait_acknowledged(self._left(deadline))):
+                    goodbyes.append(robot)  # a motion that took part on its own
+            if self.lockstep is not None and not self.lockstep.wait_acknowledged(
+                    self._left(deadline)):
+                unheard.append('the lockstep goodbye')
+        unheard[:0] = [f'the {what} of {", ".join(robots)}' for what, robots in (
+            ('final stop', stops), ('lockstep goodbye', goodbyes)) if robots]
         if unheard:
             self.get_logger().warning(
-                f'Not acknowledged within {MotionNode.stop_ack_timeout:g} s: the final stop or '
-                f'the lockstep goodbye of {", ".join(unheard)} (a subscriber is gone or '
-                'stalled, or the link is lossy)')
+                f'Not acknowledged within {MotionNode.stop_ack_timeout:g} s: '
+                f'{" and ".join(unheard)} (a subscriber is gone or stalled, or the link is '
+                'lossy)')
         ended = []
         for (robot, _, motion), node in zip(self.plan, self.motions):
             state = f'exit code {node.exit_code}' if node.done else 'stopped before the end'
             ended.append(f'{robot} {motion}: {state}')
         if ended:
             self.get_logger().info('Motions: ' + '; '.join(ended))
+
+    def _answered_for(self, node):
+        """Return whether node takes part in lockstep through the fleet's own participant."""
+        return self.lockstep is not None and getattr(node.lockstep, 'participant', None) \
+            is self.lockstep
 
     @staticmethod
     def _left(deadline):

@@ -165,7 +165,8 @@ class MotionNode(Node):
         self.sim_time = self.get_parameter('use_sim_time').value
         self._early_odoms = []
         self.lockstep = None if not self.sim_time else (
-            take_part(self) if participant is None else participant.add(self))
+            participant.add(self) if participant is not None and participant.can_add(self)
+            else take_part(self))
 
     @property
     def trajectory(self):

@@ -178,9 +178,38 @@ def test_the_shipped_params_file_reaches_every_node_and_one_robots_section_only_
         assert [n.get_fully_qualified_name() for n in nodes] == [
             '/robot1/odom_out_and_back', '/robot2/timed_out_and_back', '/robot3/rotate_robot']
         assert all(n.get_parameter('use_sim_time').value for n in nodes)  # /**
+        # On sim time the fleet is one lockstep participant for all its motions.
+        assert all(n.lockstep.participant is fleet.lockstep for n in nodes)
         assert (odom.params.legs, timed.params.legs) == (1, 2)  # /**/odom_out_and_back
         assert (odom.params.pause, timed.params.pause) == (0.25, 0.25)  # -p: every node
         assert rotate.request == RotationRequest(90.0, 180.0, True)  # /robot3/rotate_robot
+    finally:
+        rclpy.try_shutdown(context=context)
+
+
+@pytest.mark.parametrize('sim_time,fleet_takes_part,own', [
+    ({'/**': True, '/**/timed_out_and_back': False}, True, []),  # one motion on wall time
+    ({'/**/odom_out_and_back': True}, False, ['robot1']),  # the fleet itself on wall time
+    ({'/motion_fleet': True}, False, []),  # no motion on sim time: nobody takes part
+])
+def test_motions_on_the_fleets_clock_answer_through_it_and_others_on_their_own(
+        tmp_path, sim_time, fleet_takes_part, own):
+    params = tmp_path / 'params.yaml'
+    params.write_text(yaml.safe_dump({section: {'ros__parameters': {'use_sim_time': value}}
+                                      for section, value in sim_time.items()}))
+    context, fleet, nodes = fleet_in([
+        '--ros-args', '-p', 'robots:=[robot1,robot2]',
+        '-p', 'motions:=[odom_out_and_back,timed_out_and_back]', '--params-file', str(params)])
+    try:
+        assert (fleet.lockstep is not None) == fleet_takes_part
+        robots = dict(zip(['robot1', 'robot2'], nodes))
+        assert [robot for robot, node in robots.items()
+                if node.lockstep is not None and node.lockstep is not fleet.lockstep
+                and getattr(node.lockstep, 'participant', None) is None] == own
+        for node in nodes:
+            assert (node.lockstep is not None) == node.get_parameter('use_sim_time').value
+            if fleet_takes_part and node.lockstep is not None:
+                assert node.lockstep.participant is fleet.lockstep
     finally:
         rclpy.try_shutdown(context=context)
 
@@ -308,5 +337,5 @@ def test_a_fleet_names_the_robots_whose_final_stops_nobody_acknowledged(graph, p
     sim.send(signal.SIGKILL)
     sim.wait(10.0)
     output = stop(fleet, signal.SIGINT)
-    assert ('Not acknowledged within 0.2 s: the final stop or the lockstep goodbye of '
-            f'{", ".join(ROBOTS)}') in output, output
+    assert (f'Not acknowledged within 0.2 s: the final stop of {", ".join(ROBOTS)} and the '
+            'lockstep goodbye (') in output, output

@@ -194,17 +194,16 @@ def test_a_process_answers_once_a_step_for_all_its_nodes(ros_context, node):
     # A fleet: the simulator waits for one participant, not one per motion.  Each node counts
     # as before; the answer sums what they sent and says a topic is handled as far as every
     # node that handles it has got.
-    other = Node('controller2', context=ros_context,
-                 parameter_overrides=[Parameter('use_sim_time', value=True)])
-    late = Node('late', context=ros_context,
-                parameter_overrides=[Parameter('use_sim_time', value=True)])
-    owner = Node('owner', context=ros_context)
+    other, late, owner = (Node(name, context=ros_context, parameter_overrides=[
+        Parameter('use_sim_time', value=name != 'owner')]) for name in ('other', 'late', 'owner'))
     answers = []
     owner.create_subscription(String, '/clock/answers',
                               lambda msg: answers.append(Answer.decode(msg.data)), ANSWER_QOS)
     pubs = [each.create_publisher(Twist, 'cmd_vel', 10) for each in (node, other)]
     subs = [each.create_subscription(Odometry, 'odom', lambda msg: None, 10)
             for each in (node, other)]
+    ticks = []
+    other.create_timer(2.0, lambda: ticks.append(True))  # due at 2 s of sim time, and 4
     lockstep = take_part(node)
     member = lockstep.add(other)
     clocks = [next(sub for sub in each.subscriptions if sub.msg_type is ClockMsg)
@@ -213,8 +212,8 @@ def test_a_process_answers_once_a_step_for_all_its_nodes(ros_context, node):
     for each in (node, other, owner):
         executor.add_node(each)
 
-    def spin_until(predicate):
-        for _ in range(1000):
+    def spin_until(predicate, tries=1000):
+        for _ in range(tries):
             if predicate():
                 return True
             executor.spin_once(timeout_sec=0.01)
@@ -222,42 +221,81 @@ def test_a_process_answers_once_a_step_for_all_its_nodes(ros_context, node):
 
     def odom(seconds):
         msg = Odometry()
-        msg.header.stamp = Time(seconds=seconds).to_msg()
+        if seconds is not None:
+            msg.header.stamp = Time(seconds=seconds).to_msg()
         return msg
+
+    def clock(index, seconds):
+        clocks[index].callback(ClockMsg(clock=Time(seconds=seconds).to_msg()))
 
     try:
         assert spin_until(lambda: lockstep._publisher.get_subscription_count() == 1)
+        assert not lockstep.can_add(other) and not lockstep.can_add(owner)
+        with pytest.raises(ValueError, match='cannot be added'):
+            lockstep.add(other)  # twice would count it twice
         pubs[0].publish(Twist())
         pubs[1].publish(Twist())
         subs[0].callback(odom(1))
         subs[0].callback(odom(2))
         subs[1].callback(odom(1))
-        clocks[0].callback(ClockMsg(clock=Time(seconds=2).to_msg()))
-        executor.spin_once(timeout_sec=0.2)
-        assert answers == []  # the other node has not seen the step yet
-        clocks[1].callback(ClockMsg(clock=Time(seconds=2).to_msg()))
-        assert spin_until(lambda: len(answers) == 1)
+        # The first node has the step, the added one not yet: nothing is said.
+        clock(0, 2)
+        assert not spin_until(lambda: answers, tries=20)
+        # Both at 2 s, but the added node's timer, due then, has not run: nothing sent yet.
+        clock(1, 2)
+        assert ticks == [] and lockstep._last is None
+        assert spin_until(lambda: ticks and answers)  # run by the executor: then one answer
+        assert not spin_until(lambda: len(answers) > 1, tries=20)
         answer = answers[0]
         assert answer.participant == lockstep.id and answer.node == '/controller'
         assert answer.step_ns == 2_000_000_000 and not answer.leaving
         assert answer.sent == {'/cmd_vel': 2} and answer.heard == {'/odom': 1}
         assert answer.heard_stamp == {'/odom': 1_000_000_000}
+        # The other way round: the added node first, then the first.
+        clock(1, 3)
+        assert not spin_until(lambda: len(answers) > 1, tries=20)
+        clock(0, 3)
+        assert spin_until(lambda: len(answers) == 2) and answers[1].step_ns == 3_000_000_000
+        # The simulator re-sends the clock: one answer again, not one per node.
+        clock(0, 3)
+        clock(1, 3)
+        assert spin_until(lambda: len(answers) == 3)
+        assert not spin_until(lambda: len(answers) > 3, tries=20) and answers[2] == answers[1]
         with pytest.raises(RuntimeError, match='after it has answered'):
             lockstep.add(late)
         # One leaves after a final stop: that stop still counts, its odometry no longer.
         pubs[1].publish(Twist())
         assert member.leave(ack_timeout=1.0)
-        assert spin_until(lambda: len(answers) == 2)
-        assert answers[1].sent == {'/cmd_vel': 3} and answers[1].heard == {'/odom': 2}
-        assert answers[1].heard_stamp == {'/odom': 2_000_000_000} and not answers[1].leaving
+        assert spin_until(lambda: len(answers) == 4)
+        assert answers[3].sent == {'/cmd_vel': 3} and answers[3].heard == {'/odom': 2}
+        assert answers[3].heard_stamp == {'/odom': 2_000_000_000} and not answers[3].leaving
         pubs[1].publish(Twist())  # after it left: not counted
-        clocks[0].callback(ClockMsg(clock=Time(seconds=3).to_msg()))
-        assert spin_until(lambda: len(answers) == 3)
-        assert answers[2].step_ns == 3_000_000_000 and answers[2].sent == {'/cmd_vel': 3}
-        # The last to go says goodbye for all.
+        clock(0, 4)  # the node that left has not seen 4 s: it holds nothing up
+        assert spin_until(lambda: len(answers) == 5)
+        assert answers[4].step_ns == 4_000_000_000 and answers[4].sent == {'/cmd_vel': 3}
+        # The participant's own leave() says goodbye for all.
         assert lockstep.leave(ack_timeout=1.0)
-        assert spin_until(lambda: len(answers) == 4) and answers[3].leaving
+        assert spin_until(lambda: len(answers) == 6) and answers[5].leaving
     finally:
         executor.shutdown()
         for each in (other, late, owner):
             each.destroy_node()
+
+
+def test_a_node_that_heard_no_stamp_leaves_the_others_waited_for(ros_context, node):
+    # As separate participants would be: a node that has heard nothing stamped on a topic says
+    # nothing of it, and the stamps of those that have still count.
+    other = Node('other', context=ros_context,
+                 parameter_overrides=[Parameter('use_sim_time', value=True)])
+    try:
+        subs = [each.create_subscription(Odometry, 'odom', lambda msg: None, 10)
+                for each in (node, other)]
+        lockstep = take_part(node)
+        lockstep.add(other)
+        msg = Odometry()
+        msg.header.stamp = Time(seconds=4).to_msg()
+        subs[0].callback(msg)
+        _, (_, heard, _, heard_stamp) = lockstep._totals()
+        assert heard == {'/odom': 0} and heard_stamp == {'/odom': 4_000_000_000}
+    finally:
+        other.destroy_node()

@@ -74,7 +74,6 @@ class Participant:
         self.left = False
         # When the clock owner last went on without this node [ns, its clock], or None.
         self.dropped_ns = None
-        self._executor_checked = False
         # The clock this node runs on (its TimeSource's subscription, remapped or not).
         self._clock_topic = _clock_topic(node)
         self._answer_topic = answer_topic(self._clock_topic)
@@ -89,21 +88,29 @@ class Participant:
         self._settled_at = {}
         self.counter = self._answer_for(node)
 
+    def can_add(self, node):
+        """Return whether add(node) would take it: on sim time, on this clock, not yet added."""
+        return (node.get_parameter('use_sim_time').value and node not in self._nodes
+                and _clock_topic(node) == self._clock_topic)
+
     def add(self, node):
         """
         Answer for node too, from now on; return its view of this participant (a Member).
 
         Add a process's nodes before it answers the first time (once the simulator is
-        found): counts are summed from the nodes' start.
+        found), with their subscriptions made: counts are summed from the nodes' start, and a
+        topic two nodes handle counts as far as both have got (a subscription made later on
+        such a topic would start from nothing).
         """
         _check_sim_time(node)
         if self._last is not None or self.left:
             raise RuntimeError(f'{node.get_fully_qualified_name()} cannot join '
                                f'{self.node.get_fully_qualified_name()} in lockstep after it '
                                'has answered: add nodes before spinning')
-        if _clock_topic(node) != self._clock_topic:
-            raise ValueError(f'{node.get_fully_qualified_name()} runs on '
-                             f'{_clock_topic(node)}, not on {self._clock_topic}')
+        if not self.can_add(node):
+            raise ValueError(f'{node.get_fully_qualified_name()} cannot be added: it is '
+                             f'already, or it runs on {_clock_topic(node)}, not on '
+                             f'{self._clock_topic}')
         self._answer_for(node)
         return Member(self, node)
 
@@ -134,11 +141,13 @@ class Participant:
         Publish the answer, unless nobody listens or it says nothing new.
 
         An answer already sent is sent again when /clock came again since: the simulator
-        re-sends /clock while it waits, so an answer lost on the way is repeated too.
+        re-sends /clock while it waits, so an answer lost on the way is repeated too (once,
+        whatever the number of nodes: the first node's /clock tells).
         """
         if self.left or self._publisher.get_subscription_count() == 0:
             return  # gone, or no simulator steps in lockstep (or none yet): spare the hot path
-        step_ns, clock_messages, counts = self._totals()
+        step_ns, counts = self._totals()
+        clock_messages = self.counter.clock_messages
         answer = Answer(self.id, self.node.get_fully_qualified_name(), step_ns, *counts[:2],
                         leaving, *counts[2:])
         repeated_clock = clock_messages != self._last_clock_messages
@@ -151,14 +160,14 @@ class Participant:
         self._publisher.publish(msg)
 
     def _totals(self):
-        """Return (step [ns], /clock messages, (sent, heard, sent_stamp, heard_stamp))."""
+        """Return (step [ns], (sent, heard, sent_stamp, heard_stamp)) of the nodes together."""
         states = list(self._nodes.values())
         if len(states) == 1:  # one node: its own counts
             c = states[0].counter
-            return c.clock_ns or 0, c.clock_messages, (
+            return c.clock_ns or 0, (
                 dict(c.sent), dict(c.heard), dict(c.sent_stamp), dict(c.heard_stamp))
         sent, heard, sent_stamp, heard_stamp = {}, {}, {}, {}
-        step_ns, clock_messages, stampless = 0, 0, set()
+        step_ns = 0
         for state in states:
             c = state.counter
             # What a node sent counts for good (a gone node's last stop too); what it heard,
@@ -170,17 +179,12 @@ class Participant:
             if not state.active:
                 continue
             step_ns = max(step_ns, c.clock_ns or 0)
-            clock_messages += c.clock_messages
             for topic, count in c.heard.items():
                 heard[topic] = min(heard.get(topic, count), count)
-                stamp = c.heard_stamp.get(topic)
-                if stamp is None:
-                    stampless.add(topic)
-                else:
-                    heard_stamp[topic] = min(heard_stamp.get(topic, stamp), stamp)
-        for topic in stampless:  # as a node that has heard no stamp yet says none
-            heard_stamp.pop(topic, None)
-        return step_ns, clock_messages, (sent, heard, sent_stamp, heard_stamp)
+            # A node that has heard no stamp on a topic says none, as it would on its own.
+            for topic, stamp in c.heard_stamp.items():
+                heard_stamp[topic] = min(heard_stamp.get(topic, stamp), stamp)
+        return step_ns, (sent, heard, sent_stamp, heard_stamp)
 
     def leave(self, ack_timeout=0.5):
         """
@@ -219,9 +223,9 @@ class Participant:
         return self.wait_acknowledged(ack_timeout) if ack_timeout > 0.0 else True
 
     def _answer_if_settled(self, node):
-        if not self._executor_checked:
-            self._check_executor(node)
         state = self._nodes[node]
+        if not state.executor_checked:
+            state.executor_checked = _check_executor(node)
         if not state.active:
             return
         settled_ns = _settled_ns(node, state.counter)
@@ -242,17 +246,6 @@ class Participant:
         if settled_ns is not None:
             self._settled_at[settled_ns] = self._settled_at.get(settled_ns, 0) + 1
         state.settled_ns = settled_ns
-
-    def _check_executor(self, node):
-        # A MultiThreadedExecutor may take a due timer and run its callback later on another
-        # thread: the node would look settled in between and answer before its command.
-        executor = node.executor
-        if isinstance(executor, MultiThreadedExecutor):
-            raise RuntimeError(
-                f'{node.get_fully_qualified_name()} cannot take part in lockstep under a '
-                f'{type(executor).__name__}: its answers need one callback at a time; spin it '
-                'with a SingleThreadedExecutor or rclpy.experimental.EventsExecutor')
-        self._executor_checked = executor is not None
 
     def _on_roster(self, msg):
         try:
@@ -321,10 +314,24 @@ class _NodeState:
     def __init__(self, counter):
         self.counter = counter
         self.active = True
+        self.executor_checked = False
         self.settled_ns = None
         # What it had sent when it stopped being answered for.
         self.sent = {}
         self.sent_stamp = {}
+
+
+def _check_executor(node):
+    """Raise under an executor that runs callbacks at once; return whether node has one."""
+    # A MultiThreadedExecutor may take a due timer and run its callback later on another
+    # thread: the node would look settled in between and answer before its command.
+    executor = node.executor
+    if isinstance(executor, MultiThreadedExecutor):
+        raise RuntimeError(
+            f'{node.get_fully_qualified_name()} cannot take part in lockstep under a '
+            f'{type(executor).__name__}: its answers need one callback at a time; spin it '
+            'with a SingleThreadedExecutor or rclpy.experimental.EventsExecutor')
+    return executor is not None
 
 
 def _check_sim_time(node):
