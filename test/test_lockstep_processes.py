@@ -187,7 +187,8 @@ def test_motions_end_exact_and_bit_identical_on_a_busy_machine(graph, busy_machi
             ran = run_motions(graph, sim, probes, {
                 name: (f'/{name}', *motion) for name, motion in motions.items()})
             for name, (code, output, odom) in ran.items():
-                assert code == 0, output
+                # The simulator's side too, if it failed: what it excused, dropped, waited for.
+                assert code == 0, f'{output}\n{sim.describe()}'
                 assert 'Taking part in lockstep' in output, output
                 ends.setdefault(name, []).append(odom.pose.pose)
                 if name == 'closed':
