@@ -131,10 +131,15 @@ class Participant:
         return self.roster is not None and topic in self.roster.heard_topics
 
     def settled(self):
-        """Return whether every node answered for has run everything due at one clock time."""
-        times = {_settled_ns(node, state.counter) for node, state in self._nodes.items()
-                 if state.active}
-        return len(times) == 1 and None not in times
+        """
+        Return whether every node answered for has run everything due at one clock time.
+
+        As each node's own callbacks last found it (only they change what it has run).
+        """
+        if len(self._settled_at) != 1:
+            return False
+        (count,) = self._settled_at.values()
+        return count == self._active
 
     def answer(self, leaving=False):
         """
@@ -217,8 +222,7 @@ class Participant:
             self._active -= 1
         if not self._active:
             return self.leave(ack_timeout)
-        times = {s.settled_ns for s in self._nodes.values() if s.active}
-        if None not in times and len(times) == 1:
+        if self.settled():
             self.answer()  # its last messages: what the simulator waits for now
         return self.wait_acknowledged(ack_timeout) if ack_timeout > 0.0 else True
 
@@ -228,9 +232,8 @@ class Participant:
             state.executor_checked = _check_executor(node)
         if not state.active:
             return
-        settled_ns = _settled_ns(node, state.counter)
-        self._mark(state, settled_ns)
-        if settled_ns is not None and self._settled_at[settled_ns] == self._active:
+        self._mark(state, _settled_ns(node, state.counter))
+        if self.settled():
             self.answer()
 
     def _mark(self, state, settled_ns):
