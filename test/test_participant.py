@@ -93,6 +93,37 @@ def test_a_timer_event_that_comes_between_two_due_times_runs_nothing(node):
     assert timer.timer_period_ns == 100_000_000
 
 
+def test_duplicate_events_put_the_schedule_back_once_per_clock_time(node):
+    # On a lossy link a loaded EventsExecutor ran one motion's tick event hundreds of times
+    # at one clock time, each run moving rcl's schedule a period on before the callback.  Put
+    # back after every one, each reset queued another update of the executor's timers, which
+    # queued the event again once the clock moved: the duplicates doubled at every step until
+    # the node did nothing else and the simulator went on without it.
+    _, ticks, timer = tick_at(node)
+    clock = node.get_clock()
+    resets = []
+    reset = timer.reset
+    timer.reset = lambda: (resets.append(clock.now().nanoseconds), reset())
+
+    def event(times=1):  # as the executor runs one: rcl's call, then the callback
+        for _ in range(times):
+            timer.handle.call_timer()
+            timer.callback()
+
+    for t_ns in (5_000_000_000, 5_100_000_000, 5_200_000_000):
+        clock.set_ros_time_override(Time(nanoseconds=t_ns))
+        assert timer.is_ready()  # due now, however far the duplicates had moved it
+        event(times=10)
+        assert ticks[-1] == t_ns
+        assert timer.time_until_next_call() >= 100_000_000
+    assert ticks == [5_000_000_000, 5_100_000_000, 5_200_000_000]
+    # Once at each time's first duplicate, once more before the clock moved on.
+    assert resets == [5_000_000_000, 5_000_000_000, 5_100_000_000, 5_100_000_000,
+                      5_200_000_000]
+    clock.set_ros_time_override(Time(nanoseconds=5_250_000_000))
+    assert timer.time_until_next_call() == 50_000_000
+
+
 def test_a_timer_runs_at_once_after_the_clock_went_back(node):
     # A replayed or restarted /clock: the timer's schedule starts afresh, not 90 s from now.
     deliver, ticks, _ = tick_at(node)

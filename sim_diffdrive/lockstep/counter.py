@@ -28,6 +28,8 @@ one counter however many users it has, each adding itself to ``listeners``.
 import struct
 
 from rclpy.clock import ClockType
+from rclpy.clock import JumpThreshold
+from rclpy.duration import Duration
 from rclpy.serialization import deserialize_message
 from rosgraph_msgs.msg import Clock as ClockMsg
 from sim_diffdrive.cdr import header_stamp_ns
@@ -77,6 +79,10 @@ class MessageCounter:
         self.heard_stamp = {}
         self.clock_ns = None
         self.clock_messages = 0  # /clock messages handled, repeats included
+        # Sim-time timers that a duplicate event left a period (or more) ahead, with the time
+        # each is due, put back just before their clock next changes (_put_back_ahead).
+        self._ahead = {}
+        self._jump_handles = {}  # clock -> the JumpHandle that calls _put_back_ahead
         self.wrap_new()
 
     def wrap_new(self):
@@ -137,28 +143,56 @@ class MessageCounter:
                 self._after()
             return counted
         fired_at = [None]
+        put_back_at = [None]
 
         def on_schedule(*args):
-            # rclpy's EventsExecutor can queue a timer's event again before running the first
-            # (rclcpp #2771 has the same bug), most often on a loaded machine, and each run
-            # moves the timer a period further.  A second event at the same simulated time
-            # would run the callback twice; one that waited in the queue until the clock had
-            # moved on ran it between two due times, after this node had answered the step (a
-            # motion's first command then landed a step late: 1 run in 30 beside three busy
-            # loops).  Run it only when due; put the schedule back after any other event.  (A
-            # clock that went back, replayed or restarted, starts the schedule afresh.)
+            # rclpy's EventsExecutor queues a timer's event once for every update of its
+            # timers that finds it due, so a loaded executor can run it several times for one
+            # due time (rclcpp #2771 has the same bug); each run also moves rcl's schedule a
+            # period further.  Run the callback only when due: a second event at the same
+            # simulated time would run it twice, and one that waited in the queue until the
+            # clock had moved on would run it between two due times, after this node had
+            # answered the step.  Put the schedule back after any other event, but at most
+            # once per clock time: each reset makes the executor update its timers once more,
+            # and on a lossy link, where the next clock came while these updates were still
+            # queued, each of them queued the timer again at the new time: one reset per
+            # duplicate doubled the duplicates at every step until the node did nothing else.
+            # Later duplicates leave the timer ahead until its clock changes (_put_back_ahead).
+            # (A clock that went back, replayed or restarted, starts the schedule afresh.)
             if timer.is_canceled():
                 return  # an event queued before the cancel: resetting would un-cancel it
             now_ns = timer.clock.now().nanoseconds
             if fired_at[0] is not None and fired_at[0] <= now_ns:
                 due_ns = fired_at[0] + timer.timer_period_ns
                 if now_ns < due_ns:
-                    _next_call_at(timer, now_ns, due_ns)
+                    if put_back_at[0] != now_ns:
+                        put_back_at[0] = now_ns
+                        _next_call_at(timer, now_ns, due_ns)
+                    else:
+                        self._put_back_later(timer, due_ns)
                     return
             fired_at[0] = now_ns
             callback(*args)
             self._after()
         return on_schedule
+
+    def _put_back_later(self, timer, due_ns):
+        """Put timer's schedule back to due_ns just before its clock changes."""
+        self._ahead[timer] = due_ns
+        clock = timer.clock
+        if clock not in self._jump_handles:
+            self._jump_handles[clock] = clock.create_jump_callback(
+                JumpThreshold(min_forward=Duration(nanoseconds=1),
+                              min_backward=Duration(nanoseconds=-1), on_clock_change=True),
+                pre_callback=self._put_back_ahead)
+
+    def _put_back_ahead(self):
+        ahead, self._ahead = self._ahead, {}
+        for timer, due_ns in ahead.items():
+            if timer in self.node.timers and not timer.is_canceled():  # not destroyed since
+                now_ns = timer.clock.now().nanoseconds
+                if now_ns < due_ns:
+                    _next_call_at(timer, now_ns, due_ns)
 
     def _counted_publish(self, publish, topic, stamp_ns):
         def counted(msg):
