@@ -94,7 +94,7 @@ def test_a_timer_event_that_comes_between_two_due_times_runs_nothing(node):
 
 
 def test_duplicate_events_put_the_schedule_back_once_per_clock_time(node):
-    # On a lossy link a loaded EventsExecutor ran one motion's tick event hundreds of times
+    # On a lossy link a loaded EventsExecutor ran one motion's tick event thousands of times
     # at one clock time, each run moving rcl's schedule a period on before the callback.  Put
     # back after every one, each reset queued another update of the executor's timers, which
     # queued the event again once the clock moved: the duplicates doubled at every step until

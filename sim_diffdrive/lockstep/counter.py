@@ -157,7 +157,9 @@ class MessageCounter:
             # and on a lossy link, where the next clock came while these updates were still
             # queued, each of them queued the timer again at the new time: one reset per
             # duplicate doubled the duplicates at every step until the node did nothing else.
-            # Later duplicates leave the timer ahead until its clock changes (_put_back_ahead).
+            # So the first duplicate at a time puts it back at once (the update that causes is
+            # most often done before the clock moves); later ones leave the timer ahead until
+            # just before its clock changes (_put_back_ahead).
             # (A clock that went back, replayed or restarted, starts the schedule afresh.)
             if timer.is_canceled():
                 return  # an event queued before the cancel: resetting would un-cancel it
