@@ -139,11 +139,10 @@ def start_on(host, tmp_path, executable, *params):
     return process
 
 
-def run_across(sim_host, motion_host, tmp_path, motion, params):
+def run_across(sim_host, motion_host, tmp_path, motion, params, sim_params=()):
     """Run a motion (or motion_fleet) against a fresh simulator across the link; both logs."""
-    robots = [FLEET_ROBOTS] if motion == 'motion_fleet' else []
     sim = start_on(sim_host, tmp_path, 'unicycle_sim', 'publish_clock:=true',
-                   f'real_time_factor:={REAL_TIME_FACTOR}', *robots)
+                   f'real_time_factor:={REAL_TIME_FACTOR}', *sim_params)
     process = start_on(motion_host, tmp_path, motion, *params)
     try:
         code = process.wait(60.0)
@@ -182,15 +181,15 @@ def test_motion_and_simulator_on_two_hosts_end_as_exactly_as_on_one(two_hosts, t
     assert received_packets(motion_host) - before > 500
 
 
-@pytest.mark.parametrize('loss, motion, params, motions', [
-    (0.05, 'motion_fleet', FLEET_PARAMS, 3),
-    (0.2, 'rotate_robot', ROTATE_PARAMS, 1),
+@pytest.mark.parametrize('loss, motion, params, sim_params, motions', [
+    (0.05, 'motion_fleet', FLEET_PARAMS, (FLEET_ROBOTS,), 3),
+    (0.2, 'rotate_robot', ROTATE_PARAMS, (), 1),
 ], ids=['5%-fleet', '20%-rotate'])
 def test_a_lossy_link_only_slows_the_run_down(two_hosts, tmp_path, loss, motion, params,
-                                              motions):
+                                              sim_params, motions):
     for host in two_hosts:
         lose_packets(host, loss)
-    output, sim_output = run_across(*two_hosts, tmp_path, motion, params)
+    output, sim_output = run_across(*two_hosts, tmp_path, motion, params, sim_params)
     assert_exact(output, motions)
     # Nobody was given up, nothing forgiven, nobody left the lockstep before the end.
     assert '[WARN]' not in sim_output, sim_output
