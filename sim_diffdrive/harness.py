@@ -30,14 +30,16 @@ from sim_diffdrive.testing.probe import stamp_s
 from sim_diffdrive.testing.probe import twist
 from sim_diffdrive.testing.probe import twist_of
 from sim_diffdrive.testing.processes import cpu_seconds
+from sim_diffdrive.testing.processes import kill_all
 from sim_diffdrive.testing.processes import Process
 from sim_diffdrive.testing.processes import ros_params
 from sim_diffdrive.testing.processes import start
 from sim_diffdrive.testing.processes import start_python
 from sim_diffdrive.testing.processes import stop
+from sim_diffdrive.testing.processes import stop_all
 
 __all__ = [
     'DOMAIN_VARIABLE', 'Probe', 'Process', 'SimGraph', 'angle_error', 'cpu_seconds',
-    'is_moving', 'isolated_domain_id', 'pose_of', 'ros_params', 'start', 'start_python', 'stop',
-    'stamp_s', 'twist', 'twist_of',
+    'is_moving', 'isolated_domain_id', 'kill_all', 'pose_of', 'ros_params', 'start',
+    'start_python', 'stop', 'stop_all', 'stamp_s', 'twist', 'twist_of',
 ]

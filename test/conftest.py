@@ -89,8 +89,7 @@ def procs(tmp_path):
     try:
         yield start
     finally:
-        for process in started:
-            process.kill()
+        harness.kill_all(started)
 
 
 # The longest modules start first, so that with pytest -n the short ones fill in around them

@@ -20,9 +20,11 @@ import signal
 import time
 
 import pytest
+from sim_diffdrive.harness import kill_all
 from sim_diffdrive.harness import SimGraph
 from sim_diffdrive.harness import start_python
 from sim_diffdrive.harness import stop
+from sim_diffdrive.harness import stop_all
 import sim_diffdrive.testing.graph as graph_module
 from sim_diffdrive.testing.graph import claim_domains
 from sim_diffdrive.testing.graph import DOMAIN_BLOCK
@@ -36,6 +38,50 @@ try:
 except KeyboardInterrupt:
     print('interrupted', flush=True)
 """
+# Takes its time to exit after Ctrl-C or SIGTERM (as a ROS process leaving DDS does), saying
+# when the signal came.
+SLOW_TO_EXIT = """
+import signal, sys, time
+def leave(signum, frame):
+    print('signalled', time.monotonic(), flush=True)
+    time.sleep(1.0)
+    sys.exit(0)
+signal.signal(signal.SIGTERM, leave)
+signal.signal(signal.SIGINT, leave)
+print('ready', flush=True)
+time.sleep(30)
+"""
+
+
+def wait_ready(processes):
+    deadline = time.monotonic() + 20.0
+    while not all('ready' in p.output() for p in processes) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert all('ready' in p.output() for p in processes), [p.output() for p in processes]
+
+
+def signalled_at(output):
+    return float(output.split('signalled ')[1].split()[0])
+
+
+@pytest.mark.parametrize('end', ['stop_all', 'kill_all'])
+def test_several_processes_are_signalled_before_any_is_waited_for(end):
+    # Each takes 1 s to exit once signalled: one after the other, the last would hear its
+    # signal at least 2 s after the first.
+    processes = [start_python(SLOW_TO_EXIT) for _ in range(3)]
+    try:
+        wait_ready(processes)
+        if end == 'stop_all':
+            outputs = stop_all(processes)
+        else:
+            kill_all(processes)
+            outputs = [p.output() for p in processes]
+    finally:
+        kill_all(processes, grace=0.0)
+    times = [signalled_at(output) for output in outputs]
+    assert max(times) - min(times) < 1.0, outputs
+    assert [p.returncode for p in processes] == [0, 0, 0]
+    assert not any(p.log_path.exists() for p in processes)
 
 
 def test_stop_returns_the_output_and_removes_the_temporary_log():

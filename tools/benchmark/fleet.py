@@ -122,9 +122,7 @@ def measure_sim(run, graph, robots, sim, free_clock):
         commands = window(graph, sim.pid, first, sizes.fleet_window_s)
         commands['commands_per_robot'] = status(load)['ticks'] - ticks
     finally:
-        run.stop(sim)
-        if load is not None:
-            run.stop(load)
+        run.stop_all([sim] + ([load] if load is not None else []))
     return {'idle': idle, 'commands': commands}
 
 

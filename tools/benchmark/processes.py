@@ -292,7 +292,7 @@ def motions_run(run, robots, one_simulator):
                                     TIMEOUT_S + 4.0 * robots, poll=0.05)
             wall_s = max(m.exited_at for m in motions) - started if done else math.nan
         finally:
-            outputs = [run.stop(process) for process in motions + followers]
+            outputs = run.stop_all(motions) + run.stop_all(followers)
     outputs, simulators = outputs[:len(motions)], outputs[len(motions):]
     closings = [tuple(map(float, m.groups())) for out in outputs for m in DONE.finditer(out)]
     return {'rtf': min((s / w if w > 0 else math.inf for s, w, _, _ in closings),
