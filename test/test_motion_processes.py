@@ -24,28 +24,48 @@ import math
 import subprocess
 
 import pytest
+from sim_diffdrive import harness
 from sim_diffdrive.harness import angle_error
 from sim_diffdrive.harness import pose_of
 from sim_diffdrive.harness import ros_params
 
 RATE_HZ = 50.0
 REAL_TIME_FACTOR = 4.0
-ROTATE_ARGS = ['--ros-args', '-p', 'use_sim_time:=true']
 # One simulator step of turning at 60 deg/s, plus rounding.
 ONE_STEP_AT_60 = math.radians(60.0 / RATE_HZ) * 1.01
 
 
+# One simulator process for the module, a robot (namespace) per test: the tests never share a
+# robot, so none sees another's motion, and three process start-ups are saved.
+ROBOTS = ('typed', 'bad_answers', 'input_ended', 'parameters')
+
+
+@pytest.fixture(scope='module')
+def simulator(tmp_path_factory):
+    """Start a unicycle_sim process owning time, with a robot for each test that drives one."""
+    log_path = tmp_path_factory.mktemp('motion_processes') / 'unicycle_sim.log'
+    sim = harness.start('unicycle_sim', *ros_params(
+        'publish_clock:=true', f'real_time_factor:={REAL_TIME_FACTOR}', f'rate_hz:={RATE_HZ}',
+        f'robots:={list(ROBOTS)}'), log_path=log_path)
+    try:
+        yield sim
+    finally:
+        harness.stop(sim)
+
+
 @pytest.fixture
-def sim_process(graph, procs):
-    """Start a unicycle_sim process owning time, and an in-process probe on its odometry."""
-    def launch(*params):
-        sim = procs('unicycle_sim', 'unicycle_sim', *ros_params(
-            'publish_clock:=true', f'real_time_factor:={REAL_TIME_FACTOR}', f'rate_hz:={RATE_HZ}',
-            *params))
-        probe = graph.probe()
-        assert graph.spin_until(lambda: probe.odom is not None, 15.0), sim.describe()
+def robot(graph, simulator):
+    """Return a function of a robot name giving an in-process probe on its odometry, once up."""
+    def probe_on(name):
+        probe = graph.probe(namespace=name)
+        assert graph.spin_until(lambda: probe.odom is not None, 15.0), simulator.describe()
         return probe
-    return launch
+    return probe_on
+
+
+def rotate_args(robot_name, *params):
+    """Return rotate_robot's arguments: on sim time, for robot_name, with params."""
+    return ros_params('use_sim_time:=true', *params, namespace=f'/{robot_name}')
 
 
 def finish(graph, process, timeout=30.0):
@@ -62,9 +82,9 @@ def settle(graph, probe, seconds=0.3):
     return pose_of(probe.odom)
 
 
-def test_typed_answers_through_a_pipe_rotate_the_robot(graph, sim_process, procs):
-    probe = sim_process()
-    motion = procs('rotate_robot', 'rotate_robot', *ROTATE_ARGS, stdin=subprocess.PIPE)
+def test_typed_answers_through_a_pipe_rotate_the_robot(graph, robot, procs):
+    probe = robot('typed')
+    motion = procs('rotate_robot', 'rotate_robot', *rotate_args('typed'), stdin=subprocess.PIPE)
     motion.write('60\n90\ny\n')
     motion.close_input()
     code, output = finish(graph, motion)
@@ -77,9 +97,9 @@ def test_typed_answers_through_a_pipe_rotate_the_robot(graph, sim_process, procs
     assert probe.odom.twist.twist.angular.z == 0.0
 
 
-def test_bad_answers_are_explained_and_asked_again(graph, sim_process, procs):
-    probe = sim_process()
-    motion = procs('rotate_robot', 'rotate_robot', *ROTATE_ARGS, '-p', 'mode:=odom',
+def test_bad_answers_are_explained_and_asked_again(graph, robot, procs):
+    probe = robot('bad_answers')
+    motion = procs('rotate_robot', 'rotate_robot', *rotate_args('bad_answers', 'mode:=odom'),
                    stdin=subprocess.PIPE)
     motion.write('fast\n-5\nnan\n60\n\n1e9\n45\nmaybe\nN\n')
     motion.close_input()
@@ -94,9 +114,10 @@ def test_bad_answers_are_explained_and_asked_again(graph, sim_process, procs):
     assert angle_error(yaw, math.radians(45.0)) < ONE_STEP_AT_60
 
 
-def test_input_ending_early_refuses_and_never_moves(graph, sim_process, procs):
-    probe = sim_process()
-    motion = procs('rotate_robot', 'rotate_robot', *ROTATE_ARGS, stdin=subprocess.PIPE)
+def test_input_ending_early_refuses_and_never_moves(graph, robot, procs):
+    probe = robot('input_ended')
+    motion = procs('rotate_robot', 'rotate_robot', *rotate_args('input_ended'),
+                   stdin=subprocess.PIPE)
     motion.write('60\n')
     motion.close_input()
     code, output = finish(graph, motion)
@@ -107,10 +128,11 @@ def test_input_ending_early_refuses_and_never_moves(graph, sim_process, procs):
     assert all(o.twist.twist.angular.z == 0.0 for o in probe.odoms)
 
 
-def test_parameters_skip_the_questions(graph, sim_process, procs):
-    probe = sim_process()
-    motion = procs('rotate_robot', 'rotate_robot', *ROTATE_ARGS, '-p', 'angular_speed_deg:=90',
-                   '-p', 'angle_deg:=180', '-p', 'clockwise:=false', '-p', 'mode:=odom')
+def test_parameters_skip_the_questions(graph, robot, procs):
+    probe = robot('parameters')
+    motion = procs('rotate_robot', 'rotate_robot', *rotate_args(
+        'parameters', 'angular_speed_deg:=90', 'angle_deg:=180', 'clockwise:=false',
+        'mode:=odom'))
     code, output = finish(graph, motion)
     assert code == 0, output
     assert 'Enter' not in output
