@@ -144,7 +144,8 @@ def fleet_windows(run):
                           enable_rosout=False).create_publisher(Odometry, 'bench_odom', 10)
         alone = publish_cost(pub, s.fleet_messages)
         wall = start_sims(run, graph, s.fleet_robots, False)
-        for n in sorted(wall, reverse=True):
+        # Smallest first, each stopped once measured: the largest, near a core, runs alone.
+        for n in sorted(wall):
             wall[n] = measure_sim(run, graph, n, wall[n], False)
         free = {n: measure_sim(run, graph, n, start_sims(run, graph, [n], True)[n], True)
                 for n in s.fleet_free_robots}
@@ -233,7 +234,7 @@ def fleet_cpu(run):
         'each step. Commanded: a load process sends every robot a Twist at 50 Hz (alternating '
         'values: piecewise integration); steps per wall second then: '
         + core.by_n(steps_s, lambda v: f'{v:.1f}') + ' (50: kept up). The simulators of every '
-        'N start at once and are measured largest first.',
+        'N start at once and are measured smallest first, each stopped once measured.',
         data={'idle_cores': idle, 'commands_cores': busy, 'commanded_steps_per_s': steps_s,
               'windows': windows})
 
