@@ -175,7 +175,6 @@ def test_quick_run_writes_every_row(tmp_path):
     per_message = rows['fleet_per_robot']['per_message_s']
     assert 0.0 < per_message['no_subscriber_s'] < 1e-3
     assert 0.0 < per_message['one_subscriber_s'] < 1e-3
-    assert 0.0 < per_message['received_s'] < 1e-3
     assert math.isfinite(rows['fleet_per_robot']['ratio'])
     motions = rows['fleet_motions']
     for run in (motions['one_simulator'], motions['pairs']):
