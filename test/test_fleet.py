@@ -78,6 +78,29 @@ def test_a_fleet_moves_each_robot_as_a_unicycle_model_alone_would(limits):
     assert bool(ramped) == bool(limits)
 
 
+@pytest.mark.parametrize('limits', [{}, {'max_linear_accel': 0.5, 'max_angular_accel': 1.0,
+                                         'max_angular_speed': 2.0}])
+def test_a_robot_advanced_on_its_own_moves_as_its_lone_twin(limits):
+    """As the simulator does at each command: one robot at a time, by any dt, bit for bit."""
+    rng = random.Random(11)
+    poses = [(rng.uniform(-5, 5), rng.uniform(-5, 5), rng.uniform(-3, 3)) for _ in range(16)]
+    fleet = Fleet(poses, **limits)
+    alone = [UnicycleModel(*pose, **limits) for pose in poses]
+    for _ in range(400):
+        k = rng.randrange(len(alone))
+        robot, twin = fleet.robots[k], alone[k]
+        dt = rng.choice([0.0, -0.01, 1e-9, 0.003, 0.02, rng.uniform(0.0, 0.5)])
+        robot.advance(dt)
+        twin.advance(dt)
+        if rng.random() < 0.3:
+            command = (rng.choice([0.0, rng.uniform(-1, 1)]),
+                       rng.choice([0.0, 1e-7, rng.uniform(-3, 3)]))
+            robot.command(*command)
+            twin.command(*command)
+    assert [state(robot) for robot in fleet.robots] == [state(twin) for twin in alone]
+    assert sum(bool(state(twin)[3]) for twin in alone) > 4  # many were moving at the end
+
+
 def test_advancing_some_robots_leaves_the_others_where_they_are():
     fleet = Fleet([(0.0, 0.0, 0.0), (1.0, 2.0, 0.5), (3.0, 0.0, -1.0)])
     for robot in fleet.robots:

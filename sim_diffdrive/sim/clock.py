@@ -69,6 +69,9 @@ class FollowedClock:
         self.sim = sim
         # This robot's side of another simulator's lockstep, when it runs on one's /clock.
         self.participant = None
+        # The node's clock (wall time, or /clock with use_sim_time), read as an integer:
+        # Clock.now() builds a Time object, which costs more than reading the clock.
+        self._clock = sim.get_clock().handle
 
     def start(self):
         sim = self.sim
@@ -77,7 +80,8 @@ class FollowedClock:
             self.participant = take_part(sim)
 
     def now_ns(self):
-        return self.sim.get_clock().now().nanoseconds
+        with self._clock:
+            return self._clock.get_now().nanoseconds
 
     def command_arrived(self):
         """Nothing to do: this clock does not wait for the graph."""

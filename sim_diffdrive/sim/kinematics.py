@@ -97,12 +97,15 @@ class UnicycleModel:
     def command(self, linear, angular):
         """Set the velocity command; speed limits apply at once, acceleration limits over time."""
         self.commanded = (linear, angular)
-        self.target_linear = limit_command(linear, 0.0, self.max_linear_speed, 0.0, 0.0)
-        self.target_angular = limit_command(angular, 0.0, self.max_angular_speed, 0.0, 0.0)
+        # Locals, not the attributes read back: a FleetRobot's attributes are array entries.
+        target_linear = limit_command(linear, 0.0, self.max_linear_speed, 0.0, 0.0)
+        target_angular = limit_command(angular, 0.0, self.max_angular_speed, 0.0, 0.0)
+        self.target_linear = target_linear
+        self.target_angular = target_angular
         if self.max_linear_accel <= 0.0:
-            self.linear = self.target_linear
+            self.linear = target_linear
         if self.max_angular_accel <= 0.0:
-            self.angular = self.target_angular
+            self.angular = target_angular
 
     def set_limit(self, name, value):
         """Change one limit (e.g. 'max_linear_speed'); the command in force is limited anew."""
