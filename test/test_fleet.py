@@ -125,3 +125,61 @@ def test_a_robot_is_a_unicycle_model_on_the_fleets_arrays():
     assert fleet.moving().tolist() == [False, True]
     robot.reset(1.0, 1.0, 4.0)
     assert (fleet.x[1], fleet.yaw[1], fleet.moving()[1]) == (1.0, normalize_angle(4.0), False)
+
+
+def _arrays(fleet):
+    return [getattr(fleet, name).tolist() for name in (
+        'x', 'y', 'yaw', 'linear', 'angular', 'target_linear', 'target_angular',
+        'integrated_ns')]
+
+
+@pytest.mark.parametrize('seed', [1, 2, 3])
+def test_a_fleet_at_rest_steps_as_one_that_looks_at_every_robot(seed):
+    """Commands, stops, early commands, resets, timeouts, clock jumps: bit for bit the same."""
+    rng = random.Random(seed)
+    timeouts = ([], [])
+    fleets = [Fleet([(0.5, -0.5, 1.0)] * 4, timeout_ns=300_000_000,
+                    on_timeout=timeouts[k].append, max_linear_accel=2.0)
+              for k in range(2)]
+    now, rested = 0, 0
+    for _ in range(600):
+        now += -500_000_000 if rng.random() < 0.02 else rng.choice([20_000_000, 1_000_000])
+        event = rng.random()
+        i = rng.randrange(4)
+        for fleet in fleets:  # as robot.py hands a command over, at the moment it arrives
+            if event < 0.04:
+                fleet.advance_robot_to(i, now)
+                fleet.command(i, 0.3, -0.7, now)
+            elif event < 0.10:
+                fleet.advance_robot_to(i, now)
+                fleet.command(i, 0.0, 0.0, now)
+            elif event < 0.12:
+                fleet.hold(i, now + 30_000_000, 0.0, 1.5)
+            elif event < 0.13:
+                fleet.reset(i, 1.0, 2.0, 0.5)
+        rested += fleets[0].resting
+        fleets[1].resting = False  # looks at every robot, every step
+        for fleet in fleets:
+            fleet.advance_to(now)
+        assert _arrays(fleets[0]) == _arrays(fleets[1])
+    assert timeouts[0] == timeouts[1] and timeouts[0]
+    assert 50 < rested < 550  # both ways were taken, many times
+
+
+def test_any_velocity_or_early_command_wakes_a_resting_fleet():
+    fleet = Fleet([(0.0, 0.0, 0.0)] * 3)
+    fleet.advance_to(1_000)
+    assert fleet.resting
+    fleet.robots[2].command(0.0, 0.0)
+    assert fleet.resting
+    fleet.robots[2].command(0.0, 0.1)
+    assert not fleet.resting
+    fleet.advance_to(2_000)
+    assert not fleet.resting and fleet.yaw[2] == pytest.approx(1e-7)
+    fleet.command(2, 0.0, 0.0, 2_000)
+    fleet.advance_to(3_000)
+    assert fleet.resting
+    fleet.hold(0, 5_000, 1.0, 0.0)
+    assert not fleet.resting
+    fleet.advance_to(6_000)
+    assert fleet.x[0] == pytest.approx(1e-6) and fleet.integrated_ns.tolist() == [6_000] * 3

@@ -70,12 +70,14 @@ def integrate_all(x, y, yaw, linear, angular, dt):
     return x + chord * np.cos(mid), y + chord * np.sin(mid), normalize_angles(yaw + turn)
 
 
-def _array_attribute(name):
+def _array_attribute(name, velocity=False):
     def get(robot):
         return float(getattr(robot.fleet, name)[robot.index])
 
     def set_(robot, value):
         getattr(robot.fleet, name)[robot.index] = value
+        if velocity and value:
+            robot.fleet.resting = False
     return property(get, set_, doc=f"This robot's entry of Fleet.{name}.")
 
 
@@ -85,10 +87,10 @@ class FleetRobot(UnicycleModel):
     x = _array_attribute('x')
     y = _array_attribute('y')
     yaw = _array_attribute('yaw')
-    linear = _array_attribute('linear')
-    angular = _array_attribute('angular')
-    target_linear = _array_attribute('target_linear')
-    target_angular = _array_attribute('target_angular')
+    linear = _array_attribute('linear', velocity=True)
+    angular = _array_attribute('angular', velocity=True)
+    target_linear = _array_attribute('target_linear', velocity=True)
+    target_angular = _array_attribute('target_angular', velocity=True)
 
     def __init__(self, fleet, index, x, y, yaw, **limits):
         self.fleet = fleet
@@ -135,6 +137,10 @@ class Fleet:
         self.early = [[] for _ in range(n)]
         self.timeout_ns = timeout_ns
         self.on_timeout = on_timeout
+        # True while every robot is known to be at rest with no early command: set by
+        # advance_to when it finds them so, cleared by any nonzero velocity a robot is given
+        # (FleetRobot's attributes) and by hold().  Then a step only moves the time on.
+        self.resting = False
         self.robots = [FleetRobot(self, i, x, y, yaw, **limits)
                        for i, (x, y, yaw) in enumerate(poses)]
 
@@ -161,6 +167,7 @@ class Fleet:
         """Keep a command stamped ahead of the clock for robot i; it applies at its stamp."""
         bisect.insort(self.early[i], (stamp_ns, linear, angular))
         self.has_early[i] = True
+        self.resting = False
 
     def set_timeout(self, timeout_ns):
         """Use a new cmd_vel timeout [ns] (0: none) for every robot, from its last command."""
@@ -180,9 +187,14 @@ class Fleet:
         Integrate every robot up to now_ns.
 
         One numpy step for all but the robots with a cmd_vel timeout, an early command or a
-        clock jump on the way, which go one by one.
+        clock jump on the way, which go one by one.  A fleet at rest only moves its time on: at
+        rest, a cmd_vel deadline or a clock jump changes nothing until the robot's next
+        command, which brings that robot up to its time first (advance_robot_to).
         """
         integrated = self.integrated_ns
+        if self.resting:
+            integrated[:] = now_ns
+            return
         special = ((self.deadline_ns <= now_ns) | self.has_early | (integrated > now_ns)
                    | (integrated == NOT_YET))
         if special.any():
@@ -196,6 +208,8 @@ class Fleet:
         elif moving.any():
             index = np.flatnonzero(moving)
             self.advance((now_ns - integrated[index]) / _NS, index)
+        else:
+            self.resting = not (self.moving().any() or self.has_early.any())
         integrated[behind] = now_ns
 
     def advance_robot_to(self, i, now_ns):
