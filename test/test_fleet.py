@@ -53,20 +53,32 @@ def test_integrate_all_equals_integrate_bit_for_bit_through_the_small_angle_swit
     assert list(batch) == [integrate(*row) for row in rows]
 
 
-@pytest.mark.parametrize('limits', [{}, {'max_linear_accel': 0.5, 'max_angular_accel': 1.0,
-                                         'max_linear_speed': 0.8}])
+# No limits, and every kind of limit (some robots then ramp).
+LIMITS = [{}, {'max_linear_accel': 0.5, 'max_angular_accel': 1.0, 'max_linear_speed': 0.8,
+               'max_angular_speed': 2.0}]
+
+
+def fleet_and_twins(rng, count, limits):
+    """Return a Fleet of count robots at random poses and a lone UnicycleModel for each."""
+    poses = [(rng.uniform(-5, 5), rng.uniform(-5, 5), rng.uniform(-3, 3)) for _ in range(count)]
+    return Fleet(poses, **limits), [UnicycleModel(*pose, **limits) for pose in poses]
+
+
+def random_command(rng):
+    """Return (linear, angular): zero, tiny or any, as controllers send them."""
+    return (rng.choice([0.0, rng.uniform(-1, 1)]), rng.choice([0.0, 1e-7, rng.uniform(-3, 3)]))
+
+
+@pytest.mark.parametrize('limits', LIMITS)
 def test_a_fleet_moves_each_robot_as_a_unicycle_model_alone_would(limits):
     """Random commands to 64 robots, some ramping: every state equals its lone twin's."""
     rng = random.Random(9)
-    poses = [(rng.uniform(-5, 5), rng.uniform(-5, 5), rng.uniform(-3, 3)) for _ in range(64)]
-    fleet = Fleet(poses, **limits)
-    alone = [UnicycleModel(*pose, **limits) for pose in poses]
+    fleet, alone = fleet_and_twins(rng, 64, limits)
     ramped = 0
     for _ in range(300):
         for robot, twin in zip(fleet.robots, alone):
             if rng.random() < 0.05:
-                command = (rng.choice([0.0, rng.uniform(-1, 1)]),
-                           rng.choice([0.0, 1e-7, rng.uniform(-3, 3)]))
+                command = random_command(rng)
                 robot.command(*command)
                 twin.command(*command)
         ramped += int(fleet.ramping().sum())
@@ -78,14 +90,11 @@ def test_a_fleet_moves_each_robot_as_a_unicycle_model_alone_would(limits):
     assert bool(ramped) == bool(limits)
 
 
-@pytest.mark.parametrize('limits', [{}, {'max_linear_accel': 0.5, 'max_angular_accel': 1.0,
-                                         'max_angular_speed': 2.0}])
+@pytest.mark.parametrize('limits', LIMITS)
 def test_a_robot_advanced_on_its_own_moves_as_its_lone_twin(limits):
     """As the simulator does at each command: one robot at a time, by any dt, bit for bit."""
     rng = random.Random(11)
-    poses = [(rng.uniform(-5, 5), rng.uniform(-5, 5), rng.uniform(-3, 3)) for _ in range(16)]
-    fleet = Fleet(poses, **limits)
-    alone = [UnicycleModel(*pose, **limits) for pose in poses]
+    fleet, alone = fleet_and_twins(rng, 16, limits)
     for _ in range(400):
         k = rng.randrange(len(alone))
         robot, twin = fleet.robots[k], alone[k]
@@ -93,8 +102,7 @@ def test_a_robot_advanced_on_its_own_moves_as_its_lone_twin(limits):
         robot.advance(dt)
         twin.advance(dt)
         if rng.random() < 0.3:
-            command = (rng.choice([0.0, rng.uniform(-1, 1)]),
-                       rng.choice([0.0, 1e-7, rng.uniform(-3, 3)]))
+            command = random_command(rng)
             robot.command(*command)
             twin.command(*command)
     assert [state(robot) for robot in fleet.robots] == [state(twin) for twin in alone]
