@@ -327,3 +327,15 @@ def test_a_simulator_process_applies_a_live_set_and_refuses_a_read_only_one(grap
     output = sim.output()
     assert 'cmd_vel_timeout is now 1.0 s' in output
     assert 'No cmd_vel for 1 s: stopping the robot' in output
+
+
+def test_a_simulator_reads_the_system_clock_until_use_sim_time_is_set(graph):
+    sim = graph.add(UnicycleSim(namespace='/live_clock', context=graph.context))
+    before = time.time_ns()
+    now_ns = sim.now_ns()
+    assert before <= now_ns <= time.time_ns()
+    sim.set_parameters([Parameter('use_sim_time', value=True)])
+    # Simulated time from now on: no /clock has been handled since, so the clock stands where
+    # rclpy put it, far from the system clock.
+    assert sim.now_ns() == sim.get_clock().now().nanoseconds
+    assert sim.now_ns() < before - 10**18

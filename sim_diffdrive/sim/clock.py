@@ -69,9 +69,7 @@ class FollowedClock:
         self.sim = sim
         # This robot's side of another simulator's lockstep, when it runs on one's /clock.
         self.participant = None
-        # The node's clock (wall time, or /clock with use_sim_time), read as an integer:
-        # Clock.now() builds a Time object, which costs more than reading the clock.
-        self._clock = sim.get_clock().handle
+        self._clock = sim.get_clock()
 
     def start(self):
         sim = self.sim
@@ -80,8 +78,12 @@ class FollowedClock:
             self.participant = take_part(sim)
 
     def now_ns(self):
-        with self._clock:
-            return self._clock.get_now().nanoseconds
+        clock = self._clock
+        if clock.ros_time_is_active:  # use_sim_time: the time /clock gave
+            return clock.now().nanoseconds
+        # Otherwise a ROS clock is the system clock, read here as an integer: Clock.now()
+        # builds a Time object, 4-5 us a call against 1.2 us for this check and read (timeit).
+        return time.time_ns()
 
     def command_arrived(self):
         """Nothing to do: this clock does not wait for the graph."""
