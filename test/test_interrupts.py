@@ -32,6 +32,7 @@ import signal
 import subprocess
 import time
 
+from sim_diffdrive.harness import angle_error
 from sim_diffdrive.harness import is_moving as moving
 from sim_diffdrive.harness import pose_of
 from sim_diffdrive.harness import ros_params
@@ -140,7 +141,15 @@ def test_killed_controller_is_stopped_by_the_simulator_timeout(graph, procs):
     late_s = stamp_s(last_moving) - last_command_s
     assert late_s <= timeout_s + period_s, (
         f'odometry shows the robot moving {late_s:.3f} s after the last cmd_vel')
-    assert stamp_s(first_stopped) - last_command_s <= timeout_s + 2 * period_s + 0.05
+    # Where it came to rest tells how long it went on: on the circle (0.5 rad/s) the heading
+    # turned through what it had left until the timeout.  Judged by the pose, not by when the
+    # first odometry at rest was stamped: a simulator starved on a busy machine publishes late
+    # (once 0.7 s), but still stops the robot at the timeout.
+    turned = angle_error(pose_of(first_stopped)[2], pose_of(last_moving)[2])
+    moved_until_s = stamp_s(last_moving) + turned / 0.5
+    assert moved_until_s - last_command_s <= timeout_s + 0.05, (
+        f'the robot moved on until {moved_until_s - last_command_s:.3f} s after the last '
+        'cmd_vel')
     assert not any(moving(o) for o in watcher.odoms if stamp_s(o) > settled_s)
     assert f'No cmd_vel for {timeout_s:g} s: stopping the robot' in timed.output()
 
