@@ -30,6 +30,7 @@ when every node that has a ``done`` attribute is done, and on exit every node's 
 after another's failed, before any node is destroyed; the executor is shut down in between.
 """
 
+import faulthandler
 import signal
 
 import rclpy
@@ -109,6 +110,9 @@ def run(make_node, args=None):
     interrupts = _Interrupts()
     signal.signal(signal.SIGINT, interrupts)
     signal.signal(signal.SIGTERM, interrupts)
+    # `kill -USR1 <pid>` writes every thread's Python stack to stderr and the run goes on: where
+    # a process that does not exit is stuck, even inside rclpy or DDS (harness.Process.kill).
+    faulthandler.register(signal.SIGUSR1)
     nodes = []
     executor = None
     exit_code = EXIT_FAILED

@@ -17,10 +17,12 @@
 import gc
 import os
 import signal
+import sys
 import time
 
 import pytest
 from sim_diffdrive.harness import kill_all
+from sim_diffdrive.harness import Process
 from sim_diffdrive.harness import SimGraph
 from sim_diffdrive.harness import start_python
 from sim_diffdrive.harness import stop
@@ -28,6 +30,7 @@ from sim_diffdrive.harness import stop_all
 import sim_diffdrive.testing.graph as graph_module
 from sim_diffdrive.testing.graph import claim_domains
 from sim_diffdrive.testing.graph import DOMAIN_BLOCK
+from sim_diffdrive.testing.processes import STACKS_WAIT
 
 # Waits for Ctrl-C, says so, and exits 0 (as the executables do).
 INTERRUPTIBLE = """
@@ -50,6 +53,18 @@ signal.signal(signal.SIGTERM, leave)
 signal.signal(signal.SIGINT, leave)
 print('ready', flush=True)
 time.sleep(30)
+"""
+
+# Deaf to SIGTERM and stuck; shows its stack on SIGUSR1 (as runtime.run sets up), or not.
+STUCK = """
+import faulthandler, signal, sys, time
+signal.signal(signal.SIGTERM, signal.SIG_IGN)
+if sys.argv[1:] == ['stacks']:
+    faulthandler.register(signal.SIGUSR1)
+def stuck_in_here():
+    print('ready', flush=True)
+    time.sleep(30)
+stuck_in_here()
 """
 
 
@@ -186,3 +201,20 @@ def test_step_for_moves_the_simulated_robot_as_commanded(graph):
     graph.step_for(2.0)
     x, y, yaw = graph.pose()
     assert x == pytest.approx(1.0, abs=1e-9) and (y, yaw) == (0.0, 0.0)
+
+
+@pytest.mark.parametrize('stacks', [True, False])
+def test_a_process_that_does_not_exit_is_killed_with_its_stack_in_its_log(stacks):
+    process = Process([sys.executable, '-c', STUCK, *(['stacks'] if stacks else [])])
+    try:
+        wait_ready([process])
+        started = time.monotonic()
+        process.kill(grace=0.2)
+    finally:
+        kill_all([process], grace=0.0)
+    if stacks:
+        assert 'in stuck_in_here' in process.output(), process.output()
+        assert process.returncode == -signal.SIGKILL
+    else:  # not a package executable: SIGUSR1 ends it at once
+        assert process.returncode == -signal.SIGUSR1
+    assert time.monotonic() - started < 0.2 + STACKS_WAIT + 1.0

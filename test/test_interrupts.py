@@ -275,6 +275,8 @@ def interrupt_all(graph, procs, robots, timeout=40.0):
     finished = graph.spin_until(step, timeout, poll=0.01)
     for robot in robots:
         if not robot.checked:
+            if robot.run.proc.poll() is None:
+                robot.run.proc.kill(grace=1.0)  # with its threads' stacks: where it hung
             problems.append(f'{robot.run.label}: never got there, or never exited\n'
                             + robot.run.proc.describe())
     assert finished and not problems, '\n\n'.join(problems)

@@ -84,10 +84,17 @@ def test_turns_on_command_and_exits_cleanly_on_sigint(graph, start_sim):
     assert 'publishing /clock at up to 5x real time in lockstep' in output
 
 
-def test_exits_cleanly_on_sigterm(graph, start_sim):
+def test_sigusr1_shows_where_it_is_and_the_run_goes_on_then_sigterm_ends_it(graph, start_sim):
     sim = start_sim(*SIM_ARGS)
     probe = graph.probe()
     wait_for_odometry(graph, probe, sim)
+    # Every thread's Python stack, as `kill -USR1` from a shell gives it (runtime.run).
+    sim.send(signal.SIGUSR1)
+    assert graph.spin_until(lambda: 'in spin_until_done' in sim.output(), timeout=10.0), (
+        sim.output())
+    heard = len(probe.odoms)
+    assert graph.spin_until(lambda: len(probe.odoms) > heard + 5, timeout=10.0), sim.output()
+    assert sim.poll() is None
     assert stop_with(sim, signal.SIGTERM) == 0
     assert 'Traceback' not in sim.output()
 

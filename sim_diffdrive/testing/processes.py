@@ -30,6 +30,9 @@ import threading
 import time
 import weakref
 
+# How long a process that did not exit has to write its stacks before SIGKILL (Process.kill).
+STACKS_WAIT = 0.5
+
 
 def ros_params(*params, namespace=None, clock=None, sim_time=False):
     """
@@ -109,22 +112,31 @@ class Process:
         End the process unless it has exited; a temporary log is read and removed.
 
         SIGTERM first, so that it leaves DDS cleanly (a ROS node killed outright can leave
-        shared-memory transport state behind that other processes trip over); SIGKILL after
-        grace seconds.
+        shared-memory transport state behind that other processes trip over).  Still running
+        after grace seconds, it is asked for its stacks (SIGUSR1: every executable of this
+        package then writes each thread's Python stack to its output, see runtime.run), so
+        its log shows where it hung; SIGKILL follows STACKS_WAIT seconds later.
         """
         if self.popen.poll() is None:
             self.popen.terminate()
             try:
                 self.popen.wait(grace)
             except subprocess.TimeoutExpired:
-                self.popen.kill()
-                self.popen.wait()
+                self._kill_with_stacks()
         self.poll()
         if self.popen.stdin:
             self.popen.stdin.close()
         if self._temporary and self._final_output is None:
             self._final_output = self.output()
             self.log_path.unlink(missing_ok=True)
+
+    def _kill_with_stacks(self):
+        self.popen.send_signal(signal.SIGUSR1)
+        try:
+            self.popen.wait(STACKS_WAIT)  # a process without the handler dies of SIGUSR1
+        except subprocess.TimeoutExpired:
+            self.popen.kill()
+            self.popen.wait()
 
     def describe(self):
         """Return the command line and the output, for an assertion message."""
