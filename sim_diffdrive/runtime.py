@@ -18,11 +18,12 @@ The one ``main()`` shape every executable of this package uses.
 rclpy's default SIGINT handler shuts the context down before Python sees KeyboardInterrupt,
 after which a last zero Twist can no longer be published.  So the context is started without
 rclpy's signal handlers and SIGINT and SIGTERM are handled here: while Python code waits (for
-typed input, say) they raise KeyboardInterrupt; while the executor spins they only set a flag,
-checked between waits of at most 0.1 s, so no callback is cut off halfway.  The node's
-``shutdown_hook`` (the motions' final stop) then runs while the context is still valid; should
-it fail, the error is logged, the exit code is 1, and the node is destroyed and rclpy shut down
-all the same.
+typed input, say) they raise KeyboardInterrupt; from the moment the executor spins they only
+set a flag, checked between waits of at most 0.1 s, so no callback is cut off halfway, and a
+signal that comes while the run ends (a second Ctrl-C, or one just after a motion finished)
+cuts off neither the final stop nor the cleanup.  The node's ``shutdown_hook`` (the motions'
+final stop) then runs while the context is still valid; should it fail, the error is logged,
+the exit code is 1, and the node is destroyed and rclpy shut down all the same.
 
 ``make_node()`` may also return several nodes (a list or tuple), which then share the one
 executor: several motions in one process, say, each in its robot's namespace.  The run ends
@@ -50,16 +51,22 @@ _SPIN_TIMEOUT = 0.1
 
 
 class _Interrupts:
-    """SIGINT/SIGTERM handler: a flag while spinning, KeyboardInterrupt otherwise."""
+    """
+    SIGINT/SIGTERM handler: KeyboardInterrupt once, before the run spins; a flag otherwise.
+
+    Deferred from the moment the executor first spins, and after a first KeyboardInterrupt, so
+    a second signal cannot cut off the handling of the first.
+    """
 
     def __init__(self):
-        self.spinning = False
+        self.deferred = False
         self.requested = False
 
     def __call__(self, signum, frame):
-        if not self.spinning:
-            raise KeyboardInterrupt
         self.requested = True
+        if not self.deferred:
+            self.deferred = True
+            raise KeyboardInterrupt
 
 
 class UsageError(Exception):
@@ -74,14 +81,11 @@ def spin_until_done(executor, nodes, interrupts):
     never end the spin by themselves, so with none that has one it runs until interrupted.
     """
     waiting = [node for node in _as_list(nodes) if hasattr(node, 'done')]
-    interrupts.spinning = True
-    try:
-        while executor.context.ok() and not (waiting and all(n.done for n in waiting)):
-            executor.spin_once(timeout_sec=_SPIN_TIMEOUT)
-            if interrupts.requested:
-                raise KeyboardInterrupt
-    finally:
-        interrupts.spinning = False
+    interrupts.deferred = True
+    while executor.context.ok() and not (waiting and all(n.done for n in waiting)):
+        executor.spin_once(timeout_sec=_SPIN_TIMEOUT)
+        if interrupts.requested:
+            raise KeyboardInterrupt
 
 
 def worst_exit_code(nodes):
@@ -135,6 +139,8 @@ def run(make_node, args=None):
     except ExternalShutdownException:
         exit_code = EXIT_FAILED
     finally:
+        # From here on a signal neither cuts off a final stop nor the cleanup, nor escapes.
+        interrupts.deferred = True
         try:
             # Every hook first (the motions' final stops, while a simulator in the same
             # process still runs), then every node is destroyed.

@@ -188,3 +188,44 @@ def test_ctrl_c_with_nothing_failed_exits_0(main_process):
     code, nodes = run_nodes({}, extra=[Interrupting])
     assert code == EXIT_OK
     assert all(node.calls == ['shutdown_hook', 'destroy_node'] for node in nodes)
+
+
+class SignalledWhileEnding(Finished):
+    """Done at once; Ctrl-C comes during its final stop, SIGTERM while it is destroyed."""
+
+    def __init__(self):
+        super().__init__(name='signalled_while_ending')
+
+    def shutdown_hook(self):
+        self._called('shutdown_hook')
+        signal.raise_signal(signal.SIGINT)
+        self._called('final stop sent')
+
+    def destroy_node(self):
+        signal.raise_signal(signal.SIGTERM)
+        super().destroy_node()
+
+
+def test_a_signal_while_the_run_ends_cuts_off_neither_the_final_stop_nor_the_cleanup(
+        main_process):
+    # As when Ctrl-C comes just after a motion said Done, or a second time during its stop.
+    code, nodes = run_nodes({}, extra=[SignalledWhileEnding])
+    assert code == EXIT_OK
+    assert nodes[-1].calls == ['shutdown_hook', 'final stop sent', 'destroy_node']
+    assert nodes[0].calls == ['shutdown_hook', 'destroy_node']
+    assert not rclpy.ok()
+
+
+def test_ctrl_c_twice_before_the_run_spins_is_one_interrupt(main_process):
+    handled = []
+
+    def make_node():
+        try:
+            signal.raise_signal(signal.SIGINT)  # at a prompt, say
+        except KeyboardInterrupt:
+            signal.raise_signal(signal.SIGINT)  # pressed again while the first is handled
+            handled.append('the first')
+            raise
+    assert run(make_node, args=[]) == EXIT_OK
+    assert handled == ['the first']
+    assert not rclpy.ok()
