@@ -39,10 +39,11 @@ $(STAMP): Makefile setup.py package.xml tools/setup_venv.sh tools/build_tf2_msgs
 # PYTHONDONTWRITEBYTECODE is set, and each of the processes the tests start would compile the
 # package again (about 0.05 s of CPU each).  pytest keeps its rewritten test modules as bytecode
 # too, unless PYTHONDONTWRITEBYTECODE is set: then each worker rewrites all of them again
-# (about 2 s of CPU each, every run).
+# (about 2 s of CPU each, every run).  Three workers on two cores: the tests wait for the
+# processes they start for a good part of their time (docs/performance.md).
 test: $(STAMP)
 	source $(VENV)/bin/activate && python -m compileall -q motion_challenges sim_diffdrive \
-		&& env -u PYTHONDONTWRITEBYTECODE python -m pytest -q -n 2 --dist worksteal test
+		&& env -u PYTHONDONTWRITEBYTECODE python -m pytest -q -n 3 --dist worksteal test
 
 # make demo VIEW=9090: watch every run live at http://127.0.0.1:9090/ (at 2x real time).
 demo: $(STAMP)
