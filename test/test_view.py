@@ -85,11 +85,11 @@ class ViewerTab:
         self.outside = []
         self.page.route(re.compile(r'^(?!https?://(127\.0\.0\.1|localhost)[:/])'),
                         self._refuse)
-        # Loaded, its WebAssembly started and streaming from the simulator's rerun program.
+        # Loaded, its WebAssembly started and streaming from the simulator's rerun program (its
+        # picture is judged from screenshots, which wait for what they expect).
         with self.page.expect_request(lambda request: 'ReadMessages' in request.url,
                                       timeout=60_000):
             self.page.goto(url)
-        self.page.wait_for_selector('canvas', timeout=10_000)
 
     def _refuse(self, route):
         self.outside.append(route.request.url)
