@@ -79,9 +79,10 @@ def check_stopped(watcher, motion, problems, label):
     Check that after the motion exited the robot came to rest and stayed there.
 
     The simulators keep the last command (cmd_vel_timeout 0), so only the motion's final stop
-    can bring the robot to rest.  It is judged from the first odometry at rest after the exit,
-    not from a fixed delay: the motion exits once the simulator's DDS reader has acknowledged
-    the stop, and on a loaded machine the simulator may handle it a good part of a second later.
+    can bring the robot to rest.  It is judged from the odometry at rest that arrived after the
+    exit (at_rest_since), not from a fixed delay: the motion exits once the simulator's DDS
+    reader has acknowledged the stop, and on a loaded machine the simulator may handle it a
+    good part of a second later.
     """
     later = watcher.after(motion.exited_at)
     resting = at_rest_since(later)
@@ -439,7 +440,7 @@ def test_simulator_restarted_mid_motion_is_noticed(graph, procs):
             problems.append(f'{case.name}: no word of the unacknowledged stop\n{output}')
         if case.restart:
             settle = time.monotonic()
-            graph.spin_until(lambda: sum(not moving(o) for o in case.watcher.after(
-                proc.exited_at)) >= 10 or time.monotonic() > settle + 5.0, 6.0, poll=0.01)
+            graph.spin_until(lambda: len(at_rest_since(case.watcher.after(
+                proc.exited_at))) >= 10 or time.monotonic() > settle + 5.0, 6.0, poll=0.01)
             check_stopped(case.watcher, proc, problems, case.name)
     assert finished and not problems, '\n\n'.join(problems)
