@@ -131,6 +131,21 @@ class Robot:
 
     def on_stamped(self, data):
         """Take a geometry_msgs/TwistStamped's bytes: refuse it when stale, else follow it."""
+        self._take_stamped(data)
+        # Then the odometry step, if one is due: a backlog of commands must not hold it back.
+        self.sim.clock.step_if_due()
+
+    def on_twist(self, data):
+        """Take a geometry_msgs/Twist's bytes and follow it; then the odometry step, if due."""
+        sim = self.sim
+        if sim.taps:
+            sim.taps.write(self.cmd_topic, data, sim.now_ns())
+        command = self._read(data, read_twist, _twist_fields)
+        if command is not None:
+            self.command(*command)
+        sim.clock.step_if_due()
+
+    def _take_stamped(self, data):
         sim = self.sim
         if sim.taps:
             sim.taps.write(self.cmd_topic, data, sim.now_ns())
@@ -149,15 +164,6 @@ class Robot:
                     'the last command')
             return
         self.command(linear, angular, stamp_ns)
-
-    def on_twist(self, data):
-        """Take a geometry_msgs/Twist's bytes and follow it."""
-        sim = self.sim
-        if sim.taps:
-            sim.taps.write(self.cmd_topic, data, sim.now_ns())
-        command = self._read(data, read_twist, _twist_fields)
-        if command is not None:
-            self.command(*command)
 
     def _read(self, data, read, fields):
         """Return read(data); through rclpy in an encoding read() does not know; None if bad."""
