@@ -229,6 +229,19 @@ def test_a_cmd_vel_flood_is_cheap_the_last_command_wins_and_other_robots_are_unt
     assert 'Traceback' not in output
 
 
+def test_make_stress_reports_and_judges_a_short_flood():
+    # `make stress` as a user runs it, shortened.  Odometry's rate under the flood is this
+    # machine's (the check may fail on a busy one, with exit 1); the report must be whole and
+    # the last command must win.  (The tool once failed on an import that had moved.)
+    result = subprocess.run(
+        [sys.executable, str(STRESS), '--rate', '1000', '--seconds', '2', '--idle', '1.5'],
+        capture_output=True, text=True, timeout=60)
+    assert result.returncode in (0, 1), result.stdout + result.stderr
+    for line in ('commands sent', 'odometry rate', 'simulator CPU', 'RSS growth'):
+        assert line in result.stdout, result.stdout
+    assert 'ok   the last command won' in result.stdout, result.stdout
+
+
 def test_a_command_is_not_pushed_out_by_the_many_sent_after_it(graph):
     # Every publisher on cmd_vel shares the simulator's queue.  While the simulator is held
     # up (here: not spun), one good command and then 200 refused ones arrive; the good one must

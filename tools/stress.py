@@ -15,11 +15,11 @@
 """
 Stress the simulator longer than a test can: a cmd_vel flood into ``unicycle_sim``.
 
-``python tools/stress.py [--rate 10000] [--seconds 10]`` (``make stress``) floods a wall-time
-``unicycle_sim`` (cmd_vel timeout off) from a publisher process and prints the rate reached,
-odometry's rate idle and during the flood, the simulator's CPU and memory (RSS) over time and
-whether the last command won; exit 0 if odometry kept its rate within 10 %, RSS grew less
-than 1 MB after the first second and the last command won.  ``python tools/stress.py flood
+``python tools/stress.py [--rate 10000] [--seconds 10] [--idle 3]`` (``make stress``) floods a
+wall-time ``unicycle_sim`` (cmd_vel timeout off) from a publisher process and prints the rate
+reached, odometry's rate idle and during the flood, the simulator's CPU and memory (RSS) over
+time and whether the last command won; exit 0 if odometry kept its rate within 10 %, RSS grew
+less than 1 MB after the first second and the last command won.  ``python tools/stress.py flood
 --rate R --seconds S [--final V W] [--refused] [--ros-args ...]`` is the publisher (test_faults
 uses it): R Hz (0: flat out) of 100 pre-serialized Twists (with --refused every other one has
 a NaN speed, which the simulator refuses) once a subscriber is there, then --final, and a JSON
@@ -89,16 +89,18 @@ def stress(argv):
     parser.add_argument('--rate', type=float, default=10000.0, help='cmd_vel rate [Hz]')
     parser.add_argument('--seconds', type=float, default=10.0, help='flood duration [s]')
     parser.add_argument('--odom-rate', type=float, default=50.0, help='simulator rate_hz')
+    parser.add_argument('--idle', type=float, default=3.0,
+                        help='idle time before the flood [s]; odometry rate over its last 2/3')
     args = parser.parse_args(argv)
-    from benchmark.core import cpu_s
     from benchmark.core import Run
     from sim_diffdrive import harness
+    cpu_s = harness.cpu_seconds
 
     graph, run = harness.SimGraph(), Run()  # a domain of its own, which the processes share
     try:
         sim = run.start('unicycle_sim', rate_hz=args.odom_rate, cmd_vel_timeout=0.0)
         odoms = graph.wait_for_odometry(20.0, process=sim) and graph.odometry.odoms
-        graph.spin_for(3.0)
+        graph.spin_for(args.idle)
         idle_end = time.time()
         rss, cpu = [(idle_end, rss_mb(sim.pid))], cpu_s(sim.pid)
         flood_ = run.start(sys.executable, __file__, 'flood', '--rate', str(args.rate),
@@ -123,6 +125,7 @@ def stress(argv):
         return sum(t0 <= harness.stamp_s(odom) < t1 for odom in odoms) / (t1 - t0)
     start, end = report['start_wall'], report['end_wall']
     flood_rate = odometry_rate(start + EDGE_S, end - EDGE_S)
+    idle_rate = odometry_rate(idle_end - 2.0 * args.idle / 3.0, idle_end)
     # Growth from the first sample a second into the flood to the largest one after it.
     flooding = [mb for t, mb in rss[1:] if t >= start + 1.0] or [rss[0][1]]
     growth = max(flooding) - flooding[0]
@@ -130,8 +133,8 @@ def stress(argv):
           f'  commands sent        {report["sent"]} in {report["seconds"]:.2f} s = '
           f'{report["rate"]:.0f} Hz (target {f"{args.rate:g} Hz" if args.rate else "flat out"})'
           f', all acked: {report["acked"]}\n'
-          f'  odometry rate        idle {odometry_rate(idle_end - 2.0, idle_end):.1f} Hz, during '
-          f'the flood {flood_rate:.1f} Hz (nominal {args.odom_rate:g} Hz)\n'
+          f'  odometry rate        idle {idle_rate:.1f} Hz, during the flood {flood_rate:.1f} Hz '
+          f'(nominal {args.odom_rate:g} Hz)\n'
           f'  simulator CPU        {100.0 * cpu / (end - start):.0f} % of a core during the flood'
           f'\n  simulator RSS [MB]   before {rss[0][1]:.1f}; into the flood '
           + ', '.join(f'{t - start:.1f} s {mb:.1f}' for t, mb in rss[1:-1] if t >= start)
