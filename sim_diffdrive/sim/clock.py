@@ -103,7 +103,7 @@ class FollowedClock:
         """On wall time, take the odometry step now if it is due (after a command)."""
         if self._wall:
             now_ns = time.time_ns()
-            if now_ns - self._stepped_ns >= self.sim.step_ns:
+            if self._since_step_ns(now_ns) >= self.sim.step_ns:
                 self._step(now_ns)
 
     def command_arrived(self):
@@ -114,9 +114,14 @@ class FollowedClock:
 
     def _on_timer(self):
         now_ns = self.now_ns()
-        if self._wall and now_ns - self._stepped_ns < self.sim.step_ns // 2:
+        if self._wall and self._since_step_ns(now_ns) < self.sim.step_ns // 2:
             return  # a command took this step
         self._step(now_ns)
+
+    def _since_step_ns(self, now_ns):
+        """Return the wall time since the last step; a whole step if the clock went back."""
+        since_ns = now_ns - self._stepped_ns
+        return since_ns if since_ns >= 0 else self.sim.step_ns
 
     def _step(self, now_ns):
         self._stepped_ns = now_ns
