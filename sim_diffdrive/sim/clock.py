@@ -154,7 +154,7 @@ class OwnedClock:
         return self.sim_ns
 
     def step_if_due(self):
-        """Nothing to do: this clock's steps wait for its timer, however late (its time)."""
+        """Nothing to do: on owned time a late step only makes simulated time slower."""
 
     def step(self):
         """Advance simulated time by one step and publish /clock and odometry."""
