@@ -265,9 +265,9 @@ def test_a_command_is_not_pushed_out_by_the_many_sent_after_it(graph):
 def test_a_backlog_of_commands_does_not_hold_the_odometry_back(graph):
     # On wall time the commands and the odometry timer share the executor's queue.  While it
     # works off a backlog (here the commands' callback, called for 0.3 s without spinning, as
-    # the executor does with a backlog), each step is taken once due, before the next command;
-    # then the timer goes on, never two steps within half a period.  Before, the odometry
-    # waited for the backlog: 768 robots each commanded at 50 Hz got 2 steps a second.
+    # the executor does with a backlog), each step is taken once due, right after the command
+    # at hand; then the timer goes on, never two steps within half a period.  Before, the
+    # odometry waited for the backlog: 768 robots each commanded at 50 Hz got 2 steps a second.
     namespace = f'{_PREFIX}_backlog'
     sim = graph.add(UnicycleSim(namespace=namespace, context=graph.context,
                                 cli_args=ros_args(namespace, KEEP_LAST_COMMAND)))

@@ -92,9 +92,11 @@ def stress(argv):
     parser.add_argument('--idle', type=float, default=3.0,
                         help='idle time before the flood [s]; odometry rate over its last 2/3')
     args = parser.parse_args(argv)
+    if args.seconds <= 2.0 * EDGE_S:
+        parser.error(f'--seconds must be over {2.0 * EDGE_S:g}: the flood rate leaves out '
+                     f'{EDGE_S:g} s at each end')
     from benchmark.core import Run
     from sim_diffdrive import harness
-    cpu_s = harness.cpu_seconds
 
     graph, run = harness.SimGraph(), Run()  # a domain of its own, which the processes share
     try:
@@ -102,14 +104,14 @@ def stress(argv):
         odoms = graph.wait_for_odometry(20.0, process=sim) and graph.odometry.odoms
         graph.spin_for(args.idle)
         idle_end = time.time()
-        rss, cpu = [(idle_end, rss_mb(sim.pid))], cpu_s(sim.pid)
+        rss, cpu = [(idle_end, rss_mb(sim.pid))], harness.cpu_seconds(sim.pid)
         flood_ = run.start(sys.executable, __file__, 'flood', '--rate', str(args.rate),
                            '--seconds', str(args.seconds), '--final', *map(str, FINAL))
         while flood_.poll() is None:
             graph.spin_for(0.05)
             if time.time() >= rss[-1][0] + 1.0:  # once a second while flooding
                 rss.append((time.time(), rss_mb(sim.pid)))
-        cpu = cpu_s(sim.pid) - cpu
+        cpu = harness.cpu_seconds(sim.pid) - cpu
         graph.spin_for(1.0)
         rss.append((time.time(), rss_mb(sim.pid)))
         final, report = harness.twist_of(odoms[-1]), json.loads(
