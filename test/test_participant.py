@@ -221,6 +221,67 @@ def test_answers_again_on_a_repeated_clock_and_never_after_leaving(ros_context, 
         owner.destroy_node()
 
 
+def test_odometry_a_step_ahead_is_answered_with_the_clock_of_its_step(ros_context, node):
+    # The simulator publishes a step's odometry and then its /clock: a node that handles the
+    # odometry first answers once, after the clock, not for the step before and again.  A
+    # stamp further ahead is no sign of a coming step (a foreign node on wall time): answered.
+    owner = Node('owner', context=ros_context)
+    answers = []
+    owner.create_subscription(String, '/clock/answers',
+                              lambda msg: answers.append(Answer.decode(msg.data)), ANSWER_QOS)
+    odom = node.create_subscription(Odometry, 'odom', lambda msg: None, 10)
+    lockstep = take_part(node)
+    clock = next(sub for sub in node.subscriptions if sub.msg_type is ClockMsg)
+    executor = SingleThreadedExecutor(context=ros_context)
+    for each in (node, owner):
+        executor.add_node(each)
+
+    def spin_until(predicate, tries=1000):
+        for _ in range(tries):
+            if predicate():
+                return True
+            executor.spin_once(timeout_sec=0.01)
+        return predicate()
+
+    def tick(ms):
+        clock.callback(ClockMsg(clock=Time(nanoseconds=ms * 1_000_000).to_msg()))
+
+    def measured(ms):
+        msg = Odometry()
+        msg.header.stamp = Time(nanoseconds=ms * 1_000_000).to_msg()
+        odom.callback(msg)
+
+    def said(count):  # exactly count answers so far
+        return spin_until(lambda: len(answers) >= count) and not spin_until(
+            lambda: len(answers) > count, tries=20)
+
+    try:
+        assert spin_until(lambda: lockstep._publisher.get_subscription_count() == 1)
+        tick(1000)
+        measured(1020)  # the clock has not stepped yet: nothing tells a step is coming
+        assert said(2) and answers[1].heard == {'/odom': 1}
+        tick(1020)
+        assert said(3) and answers[2].step_ns == 1_020_000_000
+        measured(1040)  # one step (20 ms) ahead: its clock is on its way
+        assert said(3)
+        tick(1040)
+        assert said(4)
+        assert answers[3].step_ns == 1_040_000_000 and answers[3].heard == {'/odom': 2}
+        assert answers[3].heard_stamp == {'/odom': 1_040_000_000}
+        measured(1040)  # at the clock: answered at once
+        assert said(5) and answers[4].heard == {'/odom': 3}
+        measured(3_601_040)  # an hour ahead: no step of this clock, answered at once
+        assert said(6) and answers[5].heard == {'/odom': 4}
+        measured(1060)  # a step ahead, but its clock was lost: the simulator re-sends the last
+        assert said(6)
+        tick(1040)
+        assert said(7) and answers[6].step_ns == 1_040_000_000
+        assert answers[6].heard == {'/odom': 5}
+    finally:
+        executor.shutdown()
+        owner.destroy_node()
+
+
 def test_a_process_answers_once_a_step_for_all_its_nodes(ros_context, node):
     # A fleet: the simulator waits for one participant, not one per motion.  Each node counts
     # as before; the answer sums what they sent and says a topic is handled as far as every

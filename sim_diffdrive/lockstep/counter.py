@@ -79,6 +79,12 @@ class MessageCounter:
         self.heard_stamp = {}
         self.clock_ns = None
         self.clock_messages = 0  # /clock messages handled, repeats included
+        # The last step the clock took [ns] (None until it has stepped), and, while the
+        # listeners run after a subscription callback, whether the message it handled was
+        # stamped ahead of the clock by at most that step: its sender has the next step
+        # already, so the /clock of that step is on its way here.
+        self.clock_step_ns = None
+        self.heard_ahead = False
         # Sim-time timers that a duplicate event left a period (or more) ahead, with the time
         # each is due, put back just before their clock next changes (_put_back_ahead).
         self._ahead = {}
@@ -115,11 +121,15 @@ class MessageCounter:
             self.wrap_new()
         for listener in self.listeners:
             listener()
+        self.heard_ahead = False
 
     def _clock_callback(self, callback):
         def counted(msg):
             callback(msg)
-            self.clock_ns = msg.clock.sec * _NS + msg.clock.nanosec
+            clock_ns = msg.clock.sec * _NS + msg.clock.nanosec
+            if self.clock_ns is not None and clock_ns > self.clock_ns:
+                self.clock_step_ns = clock_ns - self.clock_ns
+            self.clock_ns = clock_ns
             self.clock_messages += 1
             self._after()
         return counted
@@ -131,6 +141,8 @@ class MessageCounter:
                 stamp = stamp_ns(args[0])
                 if stamp > self.heard_stamp.get(topic, -1):
                     self.heard_stamp[topic] = stamp
+                self.heard_ahead = (self.clock_step_ns is not None
+                                    and 0 < stamp - self.clock_ns <= self.clock_step_ns)
             callback(*args)
             self._after()
         return counted

@@ -233,7 +233,10 @@ class Participant:
         if not state.active:
             return
         self._mark(state, _settled_ns(node, state.counter))
-        if self.settled():
+        # A message stamped up to a step ahead of the clock (the simulator publishes a step's
+        # odometry before its /clock) is answered with that step: its /clock is on its way,
+        # and an answer for the step before would be one the simulator no longer waits for.
+        if self.settled() and not state.counter.heard_ahead:
             self.answer()
 
     def _mark(self, state, settled_ns):

@@ -157,12 +157,14 @@ class OwnedClock:
         """Nothing to do: on owned time a late step only makes simulated time slower."""
 
     def step(self):
-        """Advance simulated time by one step and publish /clock and odometry."""
+        """Advance simulated time by one step and publish odometry and then /clock."""
         self.before_step(self.sim_ns + self.sim.step_ns)
         self.sim_ns += self.sim.step_ns
         self.sim.advance_all(self.sim_ns)
-        self.publish()
+        # Odometry first: a participant that gets it before the /clock of its step waits for
+        # that /clock to answer, so one answer a step covers both (participant.py).
         self.sim.publish_odom()
+        self.publish()
         self.wall = time.monotonic()
         self.after_step()
 
