@@ -31,6 +31,7 @@ from geometry_msgs.msg import Twist
 import pytest
 from rclpy.clock import Clock
 from rclpy.clock import ClockType
+from rclpy.node import Node
 from rclpy.qos import QoSProfile
 from rclpy.qos import ReliabilityPolicy
 from rosgraph_msgs.msg import Clock as ClockMsg
@@ -107,14 +108,27 @@ def busy_machine():
             stop(process, signal.SIGKILL)
 
 
+def reset_client(graph):
+    """
+    Return a client of the simulator's reset, made before the probes that wait for odometry.
+
+    Discovery announces a process's readers in the order they were made, so odometry heard
+    shows that the simulator has matched the client's reply reader too.  A request sent as
+    soon as the service is found may be answered before that, and rmw_fastrtps drops a
+    response whose reader it has not matched within 100 ms: under load, discovery takes longer.
+    """
+    node = graph.add(Node('reset_client', context=graph.context, enable_rosout=False))
+    return node.create_client(Empty, '/unicycle_sim/reset')
+
+
 @pytest.fixture
 def simulator(graph, request):
     """Start unicycle_sim owning time; yield (process, probe on its odometry, reset())."""
     lockstep_timeout = getattr(request, 'param', 0.5)
     sim = start('unicycle_sim', 'publish_clock:=true', f'real_time_factor:={FACTOR}',
                 f'lockstep_timeout:={lockstep_timeout}')
+    reset = reset_client(graph)
     probe = graph.probe()
-    reset = probe.create_client(Empty, '/unicycle_sim/reset')
 
     def do_reset():
         assert reset.wait_for_service(10.0)
@@ -176,8 +190,8 @@ def test_motions_end_exact_and_bit_identical_on_a_busy_machine(graph, busy_machi
     motions = {'closed': CLOSED_LOOP, 'open': OPEN_LOOP}
     sim = start('unicycle_sim', 'publish_clock:=true', f'real_time_factor:={FACTOR}',
                 'lockstep_timeout:=2.0', f'robots:={list(motions)}')
+    reset = reset_client(graph)
     probes = {name: graph.probe(f'{name}_probe', namespace=name) for name in motions}
-    reset = probes['open'].create_client(Empty, '/unicycle_sim/reset')
     ends = {}
     try:
         assert graph.spin_until(lambda: all(p.odom for p in probes.values()), 20.0)

@@ -41,7 +41,6 @@ from sim_diffdrive.sim.node import PARAMETERS
 
 RATE_HZ = 50.0
 FREE_CLOCK_RTF = 10000.0  # the achievable factor's real_time_factor: far above what it reaches
-PAUSED_RTF = 0.001  # until measured: one step per 20 s of wall time
 fmt3 = '{:.3f}'.format
 LOAD = ('import sys; sys.path.insert(0, %r); from benchmark.fleet import load; '
         'load(*sys.argv[1:4])' % os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
@@ -74,34 +73,43 @@ def window(graph, pid, first, seconds):
 
 def start_sims(run, graph, counts, free_clock):
     """
-    Start a unicycle_sim with robots r0.. per count; {count: (process, ns, probe r0, last)}.
+    Start a unicycle_sim with robots r0.. per count; return {count: (process, ...)}.
 
-    free_clock: owning /clock, held at PAUSED_RTF (costing nothing) until measured.
+    Each: (process, namespace, probe of r0, probe of the last robot, parameter client or None).
+
+    free_clock: owning /clock at FREE_CLOCK_RTF; start one just before measuring it.  Its
+    parameter client is made before the probes' odometry subscriptions, which discovery
+    announces in that order, so odometry heard shows that the simulator has matched the
+    client's reply reader too: a request sent before that is answered into the void
+    (rmw_fastrtps waits 100 ms for the match, then drops the response; under load discovery
+    takes longer).
     """
     sims = {}
     for n in counts:
         ns = f'/fleet_{"lockstep" if free_clock else "wall"}_{n}'
+        client = None if not free_clock else AsyncParameterClient(
+            graph.add(Node('fleet_parameters', context=graph.context, enable_rosout=False)),
+            ns + '/unicycle_sim')
         probes = {k: graph.probe('fleet', f'{ns}/r{k}', False, listen_only=True,
                                  enable_rosout=False) for k in {0, n - 1}}
         sims[n] = (run.start('unicycle_sim', namespace=ns, rate_hz=RATE_HZ, **(
-            {'publish_clock': True, 'real_time_factor': PAUSED_RTF} if free_clock else {}),
-            robots=str([f'r{k}' for k in range(n)])), ns, probes[0], probes[n - 1])
+            {'publish_clock': True, 'real_time_factor': FREE_CLOCK_RTF} if free_clock else {}),
+            robots=str([f'r{k}' for k in range(n)])), ns, probes[0], probes[n - 1], client)
     return sims
 
 
 def measure_sim(run, graph, robots, sim, free_clock):
     """Measure a started simulator idle, then commanded by a load process; stop both."""
-    (sim, namespace, first, last), sizes, load = sim, run.sizes, None
-    client = AsyncParameterClient(first, namespace + '/unicycle_sim')
+    (sim, namespace, first, last, client), sizes, load = sim, run.sizes, None
 
     def real_time_factor(value):
         done = client.set_parameters([Parameter('real_time_factor', value=value)])
-        if not graph.spin_until(done.done, 10.0) or not done.result().results[0].successful:
-            raise RuntimeError(f'could not set real_time_factor {value:g} on unicycle_sim')
+        if not graph.spin_until(done.done, 10.0):
+            raise RuntimeError(f'unicycle_sim did not answer setting real_time_factor {value:g}')
+        if not done.result().results[0].successful:
+            raise RuntimeError(f'unicycle_sim refused real_time_factor {value:g}: '
+                               + done.result().results[0].reason)
     try:
-        if free_clock:
-            graph.spin_until(client.services_are_ready, 30.0)
-            real_time_factor(FREE_CLOCK_RTF)
         if not graph.spin_until(lambda: len(first.odoms) > 2, 30.0, poll=0.005):
             raise RuntimeError(f'no odometry from unicycle_sim:\n{run.stop(sim)}')
         graph.spin_for(sizes.fleet_settle_s)
@@ -332,7 +340,7 @@ def fleet_motions(run):
 def fleet_idle_large(run):
     n = run.sizes.fleet_idle_robots
     with harness.SimGraph(executor_class=EventsExecutor) as graph:
-        (sim, _, first, _), = start_sims(run, graph, [n], False).values()
+        (sim, _, first, _, _), = start_sims(run, graph, [n], False).values()
         try:
             # Making a thousand robots' publishers and subscriptions takes a few seconds.
             if not graph.spin_until(lambda: len(first.odoms) > 2, 120.0, poll=0.005):
