@@ -273,8 +273,9 @@ def fleet_rtf(run):
         f'idle {core.by_n(rtf["idle"])}; every robot commanded each step '
         f'{core.by_n(rtf["commands"])}', 'CPU-bound: 1 / (its idle CPU per simulated s) '
         + core.by_n({n: 1.0 / v for n, v in cpu['idle'].items()}),
-        f'As above with publish_clock at real_time_factor {FREE_CLOCK_RTF:g} (set through its '
-        f'parameter service), lockstep; sim s per wall s over {run.sizes.fleet_window_s:g} s. '
+        f'As above with publish_clock at real_time_factor {FREE_CLOCK_RTF:g} (1 through its '
+        'parameter service while the load joins), lockstep; sim s per wall s over '
+        f'{run.sizes.fleet_window_s:g} s. '
         'Idle: no participant. Commanded: the load takes part in the lockstep (as a motion '
         'does) and commands every robot at every step; commands per robot per step: '
         + core.by_n(answered, lambda v: f'{v:.2f}') + '. Simulator CPU per simulated s, idle: '
