@@ -308,9 +308,12 @@ def test_every_parameter_is_live_or_read_only(ros_context, node_class):
 
 def test_a_simulator_process_applies_a_live_set_and_refuses_a_read_only_one(graph, procs):
     sim = procs('unicycle_sim', 'unicycle_sim', *ros_params('rate_hz:=50.0'))
-    graph.wait_for_odometry(process=sim)
+    # The clients before the probe that waits for odometry: discovery announces readers in
+    # order, so odometry heard shows that the simulator has matched their reply readers too
+    # (rmw_fastrtps drops a response whose reader it has not matched within 100 ms).
     probe = graph.probe('setter', use_sim_time=False)
     params = Parameters(graph, probe, '/unicycle_sim')
+    graph.wait_for_odometry(process=sim)
     assert not params.set_param('rate_hz', '10.0').successful
     result = params.set_param('cmd_vel_timeout', '1.0')
     assert result.successful, result.reason
