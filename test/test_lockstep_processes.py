@@ -46,7 +46,7 @@ from sim_diffdrive.lockstep.participant import ROSTER_QOS
 from std_msgs.msg import String
 from std_srvs.srv import Empty
 
-# Above what the handshake allows across processes (at most about 20x here), so that it sets
+# Above what the handshake allows across processes (27-33x on a quiet machine), so that it sets
 # the pace; no higher, as the simulator runs at this factor while nobody takes part, and at
 # 1000x that took a core (30 CPU s for this file and test_lockstep_faults.py, 21 at 40x).
 FACTOR = 40.0

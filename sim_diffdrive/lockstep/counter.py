@@ -137,13 +137,15 @@ class MessageCounter:
     def _heard_callback(self, callback, topic, stamp_ns):
         def counted(*args):
             self.heard[topic] += 1
+            ahead = False
             if stamp_ns is not None:
                 stamp = stamp_ns(args[0])
                 if stamp > self.heard_stamp.get(topic, -1):
                     self.heard_stamp[topic] = stamp
-                self.heard_ahead = (self.clock_step_ns is not None
-                                    and 0 < stamp - self.clock_ns <= self.clock_step_ns)
+                ahead = (self.clock_step_ns is not None
+                         and 0 < stamp - self.clock_ns <= self.clock_step_ns)
             callback(*args)
+            self.heard_ahead = ahead  # for the listeners only (reset by _after)
             self._after()
         return counted
 
