@@ -182,29 +182,42 @@ def test_a_stale_or_zero_stamp_never_lowers_what_was_heard(node):
     assert counter.heard == {'/odom': 3} and counter.heard_stamp == {'/odom': 3_000_000_000}
 
 
-def test_answers_again_on_a_repeated_clock_and_never_after_leaving(ros_context, node):
-    owner = Node('owner', context=ros_context)
-    answers = []
-    owner.create_subscription(String, '/clock/answers',
-                              lambda msg: answers.append(Answer.decode(msg.data)), ANSWER_QOS)
-    lockstep = take_part(node)
-    clock = next(sub for sub in node.subscriptions if sub.msg_type is ClockMsg)
-    executor = SingleThreadedExecutor(context=ros_context)
-    for each in (node, owner):
-        executor.add_node(each)
+class Listener:
+    """The simulator's side in these tests: a node hearing the answers, spun with the nodes."""
 
-    def spin_until(predicate):
-        for _ in range(1000):
+    def __init__(self, context, *nodes):
+        self.node = Node('owner', context=context)
+        self.answers = []
+        self.node.create_subscription(
+            String, '/clock/answers', lambda msg: self.answers.append(Answer.decode(msg.data)),
+            ANSWER_QOS)
+        self.executor = SingleThreadedExecutor(context=context)
+        for each in (*nodes, self.node):
+            self.executor.add_node(each)
+
+    def spin_until(self, predicate, tries=1000):
+        for _ in range(tries):
             if predicate():
                 return True
-            executor.spin_once(timeout_sec=0.01)
+            self.executor.spin_once(timeout_sec=0.01)
         return predicate()
+
+    def close(self):
+        self.executor.shutdown()
+        self.node.destroy_node()
+
+
+def test_answers_again_on_a_repeated_clock_and_never_after_leaving(ros_context, node):
+    lockstep = take_part(node)
+    clock = next(sub for sub in node.subscriptions if sub.msg_type is ClockMsg)
+    owner = Listener(ros_context, node)
+    answers, spin_until = owner.answers, owner.spin_until
 
     def tick(seconds):
         clock.callback(ClockMsg(clock=Time(seconds=seconds).to_msg()))
 
     try:
-        assert spin_until(lambda: owner.count_publishers('/clock/answers') == 1
+        assert spin_until(lambda: owner.node.count_publishers('/clock/answers') == 1
                           and lockstep._publisher.get_subscription_count() == 1)
         tick(1)
         assert spin_until(lambda: len(answers) == 1)
@@ -214,34 +227,21 @@ def test_answers_again_on_a_repeated_clock_and_never_after_leaving(ros_context, 
         lockstep.leave(ack_timeout=1.0)
         assert spin_until(lambda: len(answers) == 3) and answers[2].leaving
         tick(2)  # a callback after leave(): nothing more is said
-        executor.spin_once(timeout_sec=0.2)
+        owner.executor.spin_once(timeout_sec=0.2)
         assert len(answers) == 3
     finally:
-        executor.shutdown()
-        owner.destroy_node()
+        owner.close()
 
 
 def test_odometry_a_step_ahead_is_answered_with_the_clock_of_its_step(ros_context, node):
     # The simulator publishes a step's odometry and then its /clock: a node that handles the
     # odometry first answers once, after the clock, not for the step before and again.  A
     # stamp further ahead is no sign of a coming step (a foreign node on wall time): answered.
-    owner = Node('owner', context=ros_context)
-    answers = []
-    owner.create_subscription(String, '/clock/answers',
-                              lambda msg: answers.append(Answer.decode(msg.data)), ANSWER_QOS)
     odom = node.create_subscription(Odometry, 'odom', lambda msg: None, 10)
     lockstep = take_part(node)
     clock = next(sub for sub in node.subscriptions if sub.msg_type is ClockMsg)
-    executor = SingleThreadedExecutor(context=ros_context)
-    for each in (node, owner):
-        executor.add_node(each)
-
-    def spin_until(predicate, tries=1000):
-        for _ in range(tries):
-            if predicate():
-                return True
-            executor.spin_once(timeout_sec=0.01)
-        return predicate()
+    owner = Listener(ros_context, node)
+    answers, spin_until = owner.answers, owner.spin_until
 
     def tick(ms):
         clock.callback(ClockMsg(clock=Time(nanoseconds=ms * 1_000_000).to_msg()))
@@ -278,19 +278,15 @@ def test_odometry_a_step_ahead_is_answered_with_the_clock_of_its_step(ros_contex
         assert said(7) and answers[6].step_ns == 1_040_000_000
         assert answers[6].heard == {'/odom': 5}
     finally:
-        executor.shutdown()
-        owner.destroy_node()
+        owner.close()
 
 
 def test_a_process_answers_once_a_step_for_all_its_nodes(ros_context, node):
     # A fleet: the simulator waits for one participant, not one per motion.  Each node counts
     # as before; the answer sums what they sent and says a topic is handled as far as every
     # node that handles it has got.
-    other, late, owner = (Node(name, context=ros_context, parameter_overrides=[
-        Parameter('use_sim_time', value=name != 'owner')]) for name in ('other', 'late', 'owner'))
-    answers = []
-    owner.create_subscription(String, '/clock/answers',
-                              lambda msg: answers.append(Answer.decode(msg.data)), ANSWER_QOS)
+    other, late = (Node(name, context=ros_context, parameter_overrides=[
+        Parameter('use_sim_time', value=True)]) for name in ('other', 'late'))
     pubs = [each.create_publisher(Twist, 'cmd_vel', 10) for each in (node, other)]
     subs = [each.create_subscription(Odometry, 'odom', lambda msg: None, 10)
             for each in (node, other)]
@@ -300,16 +296,8 @@ def test_a_process_answers_once_a_step_for_all_its_nodes(ros_context, node):
     member = lockstep.add(other)
     clocks = [next(sub for sub in each.subscriptions if sub.msg_type is ClockMsg)
               for each in (node, other)]
-    executor = SingleThreadedExecutor(context=ros_context)
-    for each in (node, other, owner):
-        executor.add_node(each)
-
-    def spin_until(predicate, tries=1000):
-        for _ in range(tries):
-            if predicate():
-                return True
-            executor.spin_once(timeout_sec=0.01)
-        return predicate()
+    owner = Listener(ros_context, node, other)
+    answers, spin_until = owner.answers, owner.spin_until
 
     def odom(seconds):
         msg = Odometry()
@@ -322,7 +310,7 @@ def test_a_process_answers_once_a_step_for_all_its_nodes(ros_context, node):
 
     try:
         assert spin_until(lambda: lockstep._publisher.get_subscription_count() == 1)
-        assert not lockstep.can_add(other) and not lockstep.can_add(owner)
+        assert not lockstep.can_add(other) and not lockstep.can_add(owner.node)
         with pytest.raises(ValueError, match='cannot be added'):
             lockstep.add(other)  # twice would count it twice
         pubs[0].publish(Twist())
@@ -369,8 +357,8 @@ def test_a_process_answers_once_a_step_for_all_its_nodes(ros_context, node):
         assert lockstep.leave(ack_timeout=1.0)
         assert spin_until(lambda: len(answers) == 6) and answers[5].leaving
     finally:
-        executor.shutdown()
-        for each in (other, late, owner):
+        owner.close()
+        for each in (other, late):
             each.destroy_node()
 
 
