@@ -148,6 +148,7 @@ class _Member:
     def __init__(self, answer, joined_ns, wall_s):
         self.answer = answer
         self.joined_ns = joined_ns
+        self.answers = 1  # heard from it, goodbye aside (about one a step: see participant.py)
         # When anything was last heard from it [s, wall]: only a silent member is dropped.
         self.heard_wall = wall_s
         # Per stamped topic: a stamp the owner stopped waiting for (see forgive).
@@ -202,6 +203,7 @@ class StepLedger:
             self.members[answer.participant] = _Member(answer, now_ns, wall_s)
             return 'joined'
         member.answer = answer
+        member.answers += 1
         member.heard_wall = wall_s
         if member.synced:
             self._settle_offsets(member)

@@ -193,7 +193,11 @@ class LockstepOwner:
             return
         now_ns = self.sim.now_ns()
         if self.ledger.receive(answer, now_ns, time.monotonic()) == 'left':
-            self.sim.get_logger().info(f'Lockstep: {answer.node} left at {now_ns / _NS:.3f} s')
+            member = self.ledger.members[answer.participant]
+            steps = (now_ns - member.joined_ns) // self.sim.step_ns
+            self.sim.get_logger().info(
+                f'Lockstep: {answer.node} left at {now_ns / _NS:.3f} s ({member.answers} '
+                f'answers in {steps} steps)')
         self._on_news()
 
     def _on_news(self):

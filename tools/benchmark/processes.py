@@ -84,6 +84,7 @@ try:
 except KeyboardInterrupt:
     pass
 """
+LEFT = re.compile(r'Lockstep: \S+ left at \S+ s \((\d+) answers in (\d+) steps\)')
 DONE = re.compile(r'Done in ([0-9.]+) s \(([0-9.]+) s wall\).* error ([0-9.]+) mm, ([0-9.]+) deg')
 
 
@@ -111,9 +112,13 @@ def watch_motion(graph, start, stop, motion, rtf, **sim_params):
             graph.spin_until(lambda: len(probe.odoms) > seen + 2  # at rest, the motion gone
                              and not harness.is_moving(probe.odom), 2.0)
     finally:
-        log = ([stop(process) for process in processes] or [''])[0]
+        logs = [stop(process) for process in processes] or ['']
         graph.remove(probe)
-    result = {'exit': code, 'log': log, 'odoms': probe.odoms, 'walls': probe.odom_walls}
+    result = {'exit': code, 'log': logs[0], 'odoms': probe.odoms, 'walls': probe.odom_walls}
+    # The simulator's count of the motion's lockstep answers, logged when the motion left.
+    left = LEFT.search(logs[-1]) if len(logs) > 1 else None
+    if left:
+        result['answers_per_step'] = int(left.group(1)) / max(int(left.group(2)), 1)
     if probe.odoms:
         x, y, yaw = harness.pose_of(probe.odoms[0])
         goal = x, y, math.remainder(yaw + math.radians(turn_deg), 2.0 * math.pi)
@@ -148,6 +153,9 @@ def rtf_processes(run):
     identical = None if run.sizes.process_runs < 2 else not failed and all(
         r['end'] == runs[0]['end'] for runs in results.values() for r in runs)
     worst_mm, worst_deg = np.nanmax(list(errors.values()), axis=(0, 1))
+    answers = {m: np.mean([r['answers_per_step'] for r in runs if 'answers_per_step' in r])
+               if any('answers_per_step' in r for r in runs) else math.nan
+               for m, runs in results.items()}
     return Row(
         'real-time factor across processes (sim s / wall s), from odometry',
         ', '.join(f'{m} {core.fmt_x(x)}' for m, x in rtf.items()) + '; identical: '
@@ -155,11 +163,14 @@ def rtf_processes(run):
         + (f'; {len(failed)} runs failed' if failed else ''), f'clock set to {run.rtf:g}x',
         f'unicycle_sim (publish_clock, real_time_factor {run.rtf:g}, 50 Hz) and the motion '
         'executables, a fresh simulator each run; sim and wall s of the movement on odometry. '
-        f'In lockstep: one round trip per 20 ms step. Worst error {worst_mm:.3g} mm, '
+        "In lockstep: one round trip per 20 ms step; answers per step (the simulator's "
+        'count): ' + ', '.join(f'{m} {a:.2f}' for m, a in answers.items())
+        + f'. Worst error {worst_mm:.3g} mm, '
         f'{worst_deg:.3g} deg.' + ''.join(f' Failed: {f}.' for f in failed),
         f'>= {core.TARGET_RTF_PROCESSES:g}x',
         not failed and min(rtf.values()) >= core.TARGET_RTF_PROCESSES,
         {'rtf': rtf, 'identical': identical, 'errors_mm_deg': errors, 'failures': failed,
+         'answers_per_step': answers,
          'failure_logs': [core.tail(r['log']) for rs in results.values() for r in rs
                           if r['exit']]})
 
