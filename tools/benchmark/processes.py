@@ -153,8 +153,7 @@ def rtf_processes(run):
     identical = None if run.sizes.process_runs < 2 else not failed and all(
         r['end'] == runs[0]['end'] for runs in results.values() for r in runs)
     worst_mm, worst_deg = np.nanmax(list(errors.values()), axis=(0, 1))
-    answers = {m: np.mean([r['answers_per_step'] for r in runs if 'answers_per_step' in r])
-               if any('answers_per_step' in r for r in runs) else math.nan
+    answers = {m: np.mean([r.get('answers_per_step', math.nan) for r in runs])
                for m, runs in results.items()}
     return Row(
         'real-time factor across processes (sim s / wall s), from odometry',
