@@ -28,6 +28,7 @@ from rosgraph_msgs.msg import Clock as ClockMsg
 from sim_diffdrive.lockstep.handshake import Answer
 from sim_diffdrive.lockstep.handshake import Roster
 from sim_diffdrive.lockstep.participant import ANSWER_QOS
+from sim_diffdrive.lockstep.participant import ROSTER_QOS
 from sim_diffdrive.lockstep.participant import take_part
 from std_msgs.msg import String
 
@@ -277,6 +278,54 @@ def test_odometry_a_step_ahead_is_answered_with_the_clock_of_its_step(ros_contex
         tick(1040)
         assert said(7) and answers[6].step_ns == 1_040_000_000
         assert answers[6].heard == {'/odom': 5}
+    finally:
+        owner.close()
+
+
+def test_a_joining_node_answers_the_newest_of_the_odometry_it_catches_up_on(ros_context, node):
+    # A node that joins a running simulator finds odometry queued from before, stamped behind
+    # its clock (a 16-motion fleet, some 800 messages): the simulator waits for the newest, so
+    # answering each older one only costs both sides.  Once the roster lists the node, every
+    # message is answered as it comes again.
+    odom = node.create_subscription(Odometry, 'odom', lambda msg: None, 50)
+    lockstep = take_part(node)
+    clock = next(sub for sub in node.subscriptions if sub.msg_type is ClockMsg)
+    owner = Listener(ros_context, node)
+    answers, spin_until = owner.answers, owner.spin_until
+    roster = owner.node.create_publisher(String, '/clock/roster', ROSTER_QOS)
+
+    def tick(ms):
+        clock.callback(ClockMsg(clock=Time(nanoseconds=ms * 1_000_000).to_msg()))
+
+    def measured(ms):
+        msg = Odometry()
+        msg.header.stamp = Time(nanoseconds=ms * 1_000_000).to_msg()
+        odom.callback(msg)
+
+    def said(count):  # exactly count answers so far
+        return spin_until(lambda: len(answers) >= count) and not spin_until(
+            lambda: len(answers) > count, tries=20)
+
+    try:
+        assert spin_until(lambda: lockstep._publisher.get_subscription_count() == 1)
+        tick(1000)
+        assert said(1)
+        for ms in range(900, 1000, 20):  # queued while the simulator ran on without it
+            measured(ms)
+        assert said(1)
+        measured(1000)  # the newest, at its clock
+        assert said(2) and answers[1].heard == {'/odom': 6}
+        assert answers[1].heard_stamp == {'/odom': 1_000_000_000}
+        measured(990)  # a stale stamp as the newest (a foreign node's): the re-sent clock tells
+        assert said(2)
+        tick(1000)
+        assert said(3) and answers[2].heard == {'/odom': 7}
+        msg = String()
+        msg.data = Roster('/unicycle_sim', 1_000_000_000, {lockstep.id}).encode()
+        roster.publish(msg)
+        assert spin_until(lambda: lockstep.joined)
+        measured(980)  # in the lockstep: answered at once
+        assert said(4) and answers[3].heard == {'/odom': 8}
     finally:
         owner.close()
 

@@ -80,11 +80,11 @@ class MessageCounter:
         self.clock_ns = None
         self.clock_messages = 0  # /clock messages handled, repeats included
         # The last step the clock took [ns] (None until it has stepped), and, while the
-        # listeners run after a subscription callback, whether the message it handled was
-        # stamped ahead of the clock by at most that step: its sender has the next step
-        # already, so the /clock of that step is on its way here.
+        # listeners run after a subscription callback, how far ahead of the clock the message
+        # it handled was stamped [ns] (None: no stamp, or no clock yet).  Up to a step ahead:
+        # its sender has the next step already, so the /clock of that step is on its way here.
         self.clock_step_ns = None
-        self.heard_ahead = False
+        self.heard_offset_ns = None
         # Sim-time timers that a duplicate event left a period (or more) ahead, with the time
         # each is due, put back just before their clock next changes (_put_back_ahead).
         self._ahead = {}
@@ -121,7 +121,7 @@ class MessageCounter:
             self.wrap_new()
         for listener in self.listeners:
             listener()
-        self.heard_ahead = False
+        self.heard_offset_ns = None
 
     def _clock_callback(self, callback):
         def counted(msg):
@@ -137,15 +137,15 @@ class MessageCounter:
     def _heard_callback(self, callback, topic, stamp_ns):
         def counted(*args):
             self.heard[topic] += 1
-            ahead = False
+            offset = None
             if stamp_ns is not None:
                 stamp = stamp_ns(args[0])
                 if stamp > self.heard_stamp.get(topic, -1):
                     self.heard_stamp[topic] = stamp
-                ahead = (self.clock_step_ns is not None
-                         and 0 < stamp - self.clock_ns <= self.clock_step_ns)
+                if self.clock_ns is not None:
+                    offset = stamp - self.clock_ns
             callback(*args)
-            self.heard_ahead = ahead  # for the listeners only (reset by _after)
+            self.heard_offset_ns = offset  # for the listeners only (reset by _after)
             self._after()
         return counted
 
