@@ -203,9 +203,37 @@ class Listener:
             self.executor.spin_once(timeout_sec=0.01)
         return predicate()
 
+    def said(self, count):
+        """Return whether exactly count answers have come (none more after a while)."""
+        return self.spin_until(lambda: len(self.answers) >= count) and not self.spin_until(
+            lambda: len(self.answers) > count, tries=20)
+
     def close(self):
         self.executor.shutdown()
         self.node.destroy_node()
+
+
+def answering_node(ros_context, node, odom_depth):
+    """Give node an odom subscription and make it take part; return the three helpers."""
+    odom = node.create_subscription(Odometry, 'odom', lambda msg: None, odom_depth)
+    lockstep = take_part(node)
+    return lockstep, Listener(ros_context, node), Handed(node, odom)
+
+
+class Handed:
+    """The simulator's /clock and odometry handed to a node's callbacks, at times in ms."""
+
+    def __init__(self, node, odom):
+        self.clock = next(sub for sub in node.subscriptions if sub.msg_type is ClockMsg)
+        self.odom = odom
+
+    def tick(self, ms):
+        self.clock.callback(ClockMsg(clock=Time(nanoseconds=ms * 1_000_000).to_msg()))
+
+    def measured(self, ms):
+        msg = Odometry()
+        msg.header.stamp = Time(nanoseconds=ms * 1_000_000).to_msg()
+        self.odom.callback(msg)
 
 
 def test_answers_again_on_a_repeated_clock_and_never_after_leaving(ros_context, node):
@@ -238,24 +266,9 @@ def test_odometry_a_step_ahead_is_answered_with_the_clock_of_its_step(ros_contex
     # The simulator publishes a step's odometry and then its /clock: a node that handles the
     # odometry first answers once, after the clock, not for the step before and again.  A
     # stamp further ahead is no sign of a coming step (a foreign node on wall time): answered.
-    odom = node.create_subscription(Odometry, 'odom', lambda msg: None, 10)
-    lockstep = take_part(node)
-    clock = next(sub for sub in node.subscriptions if sub.msg_type is ClockMsg)
-    owner = Listener(ros_context, node)
-    answers, spin_until = owner.answers, owner.spin_until
-
-    def tick(ms):
-        clock.callback(ClockMsg(clock=Time(nanoseconds=ms * 1_000_000).to_msg()))
-
-    def measured(ms):
-        msg = Odometry()
-        msg.header.stamp = Time(nanoseconds=ms * 1_000_000).to_msg()
-        odom.callback(msg)
-
-    def said(count):  # exactly count answers so far
-        return spin_until(lambda: len(answers) >= count) and not spin_until(
-            lambda: len(answers) > count, tries=20)
-
+    lockstep, owner, handed = answering_node(ros_context, node, odom_depth=10)
+    answers, spin_until, said = owner.answers, owner.spin_until, owner.said
+    tick, measured = handed.tick, handed.measured
     try:
         assert spin_until(lambda: lockstep._publisher.get_subscription_count() == 1)
         tick(1000)
@@ -287,24 +300,10 @@ def test_a_joining_node_answers_the_newest_of_the_odometry_it_catches_up_on(ros_
     # its clock (a 16-motion fleet, some 800 messages): the simulator waits for the newest, so
     # answering each older one only costs both sides.  Once the roster lists the node, every
     # message is answered as it comes again.
-    odom = node.create_subscription(Odometry, 'odom', lambda msg: None, 50)
-    lockstep = take_part(node)
-    clock = next(sub for sub in node.subscriptions if sub.msg_type is ClockMsg)
-    owner = Listener(ros_context, node)
-    answers, spin_until = owner.answers, owner.spin_until
+    lockstep, owner, handed = answering_node(ros_context, node, odom_depth=50)
+    answers, spin_until, said = owner.answers, owner.spin_until, owner.said
+    tick, measured = handed.tick, handed.measured
     roster = owner.node.create_publisher(String, '/clock/roster', ROSTER_QOS)
-
-    def tick(ms):
-        clock.callback(ClockMsg(clock=Time(nanoseconds=ms * 1_000_000).to_msg()))
-
-    def measured(ms):
-        msg = Odometry()
-        msg.header.stamp = Time(nanoseconds=ms * 1_000_000).to_msg()
-        odom.callback(msg)
-
-    def said(count):  # exactly count answers so far
-        return spin_until(lambda: len(answers) >= count) and not spin_until(
-            lambda: len(answers) > count, tries=20)
 
     try:
         assert spin_until(lambda: lockstep._publisher.get_subscription_count() == 1)
