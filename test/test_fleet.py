@@ -147,7 +147,7 @@ def test_a_fleet_at_rest_steps_as_one_that_looks_at_every_robot(seed):
     rng = random.Random(seed)
     timeouts = ([], [])
     fleets = [Fleet([(0.5, -0.5, 1.0)] * 4, timeout_ns=300_000_000,
-                    on_timeout=timeouts[k].append, max_linear_accel=2.0)
+                    on_timeout=lambda i, _, t=timeouts[k]: t.append(i), max_linear_accel=2.0)
               for k in range(2)]
     now, rested = 0, 0
     for _ in range(600):

@@ -118,8 +118,8 @@ class Fleet:
     ``poses`` is a sequence of (x, y, yaw); ``names`` the robots' names ('' for a simulator's
     one robot without a name); ``timeout_ns`` the cmd_vel timeout (0: none); ``limits`` are
     UnicycleModel's keyword arguments, the same for every robot at start
-    (``robots[i].set_limit`` changes one).  ``on_timeout(i)`` is called when robot i is
-    stopped because its commands stopped coming.
+    (``robots[i].set_limit`` changes one).  ``on_timeout(i, last_ns)`` is called when robot
+    i is stopped because its commands stopped coming, with the time its last command came.
     """
 
     def __init__(self, poses, *, names=None, timeout_ns=0, on_timeout=None, **limits):
@@ -244,7 +244,7 @@ class Fleet:
                 integrated = max(integrated, deadline)
                 robot.command(0.0, 0.0)
                 if self.on_timeout is not None:
-                    self.on_timeout(i)
+                    self.on_timeout(i, last)
             # At rest, a passed deadline changes nothing until the next command.
             self._set_last_command(i, None)
         robot.advance((now_ns - integrated) / _NS)

@@ -191,10 +191,12 @@ class UnicycleSim(Node):
         """Integrate every robot up to now_ns."""
         self.fleet.advance_to(now_ns)
 
-    def _on_timeout(self, index):
+    def _on_timeout(self, index, last_ns):
+        # When the last command came, on the node's clock: from the outside only the sender's
+        # time is known, and a busy machine can hand the command over later.
         self.get_logger().warning(
             f'{self.robots[index].label}No cmd_vel for {self.params.cmd_vel_timeout:g} s: '
-            'stopping the robot')
+            f'stopping the robot (the last came at {last_ns // _NS}.{last_ns % _NS:09d} s)')
 
     # -- parameters and reset ---------------------------------------------------------------
 
