@@ -158,6 +158,7 @@ def test_quick_run_writes_every_row(tmp_path):
     assert rows['latency']['samples'] + rows['latency']['lost'] == sizes.latency_samples
     assert rows['cpu_idle']['idle_percent'] >= 0.0
     assert rows['cpu_idle']['rclpy_floor_percent'] > 0.0
+    assert rows['cpu_idle']['publish_floor_percent'] > 0.0
     assert tuple(rows['scaling_one_process']['rtf']) == tuple(map(str, sizes.robots))
     assert tuple(rows['scaling_processes']['rtf']) == tuple(map(str, sizes.robots_processes))
     # Many robots in one simulator (rows 13-18): every count measured, sane, motions exact.
