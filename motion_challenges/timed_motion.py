@@ -15,11 +15,13 @@
 """
 The open-loop motions' base: follow a PiecewisePlan (motion_challenges.plans) on the node clock.
 
-Each tick publishes the plan's mean command over the coming period, so the commanded integral
-equals the plan's even when a segment ends between two ticks.  On sim time ticks land exactly
-on the clock's steps; on wall time they land late by however long the executor took, so the
-last tick arms a one-shot timer for the plan's end instead, and the final stop is sent then,
-not at the next tick (the robot applies each command when it arrives).
+Each tick publishes the plan's mean command until the next tick, so the commanded integral
+equals the plan's even when a segment ends between two ticks.  On sim time a tick fires at the
+first step of the clock at or after it is due, so the next one is known: with a period of
+whole steps (10 Hz on 20 ms steps) one period on, otherwise up to a step later (8 Hz: 140,
+120, 120, 120, 140 ms ...).  On wall time ticks land late by however long the executor took,
+so the last tick arms a one-shot timer for the plan's end instead, and the final stop is sent
+then, not at the next tick (the robot applies each command when it arrives).
 """
 
 from motion_challenges.motion_node import MotionNode
@@ -50,7 +52,17 @@ class TimedMotion(MotionNode):
             if self._end_timer is None:
                 self._end_timer = self.create_timer(end - t, self._on_plan_end)
             return self._plan.average(t, end)
-        return self._plan.average(t, t + self.period)
+        return self._plan.average(t, t + self._until_next_tick_s())
+
+    def _until_next_tick_s(self):
+        """Return how long this tick's command holds [s]: until the next tick fires."""
+        step_ns = self.lockstep.counter.clock_step_ns if self.lockstep is not None else None
+        due_ns = self._tick_timer.time_until_next_call()
+        if not step_ns or due_ns is None:
+            return self.period
+        # The clock reaches the next tick's time in whole steps from now (its last step's size:
+        # a simulator steps evenly).
+        return -(-due_ns // step_ns) * step_ns / _NS
 
     def _on_plan_end(self):
         self._end_timer.cancel()

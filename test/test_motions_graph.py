@@ -67,6 +67,27 @@ def test_rotate_on_odometry_far_slower_than_its_control_rate_ends_at_goal_yaw(gr
     assert robot.odoms[-1].twist.twist.angular.z == 0.0
 
 
+@pytest.mark.parametrize('rate_hz', [8.0, 7.0, 3.0])
+def test_timed_motions_at_a_rate_off_the_clock_steps_end_exact(graph, rate_hz):
+    """
+    A control period that is no whole number of the clock's 20 ms steps: exact all the same.
+
+    A tick fires at the first step at or after it is due, so commands hold for uneven times
+    (at 8 Hz: 140, 120, 120, 120, 140 ms ...); each covers the plan until the next tick.
+    """
+    graph.sim()
+    robot = graph.probe()
+    node = graph.node(RotateRobot, rate_hz=rate_hz)
+    node.start(RotationRequest(33.0, 100.0, False))
+    run_to_end(graph, node, sim_timeout=10.0)
+    assert angle_error(pose_of(robot.odom)[2], math.radians(100.0)) < 1e-9
+    node = graph.node(TimedOutAndBack, rate_hz=rate_hz, linear_speed=0.3, angular_speed=0.7,
+                      goal_distance=0.5, pause=0.3)
+    run_to_end(graph, node, sim_timeout=20.0)
+    x, y, yaw = pose_of(robot.odom)
+    assert math.hypot(x, y) < 1e-9 and angle_error(yaw, math.radians(100.0)) < 1e-9
+
+
 @pytest.mark.parametrize('node_class', [TimedOutAndBack, OdomOutAndBack])
 def test_out_and_back_returns_to_start(graph, node_class):
     graph.sim(initial_x=1.0, initial_y=-2.0, initial_yaw=0.5)

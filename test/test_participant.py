@@ -94,6 +94,25 @@ def test_a_timer_event_that_comes_between_two_due_times_runs_nothing(node):
     assert timer.timer_period_ns == 100_000_000
 
 
+def test_a_period_off_the_clock_steps_keeps_rcls_schedule_through_duplicate_events(node):
+    # 125 ms on 20 ms steps: due at 5.125, 5.25, 5.375 ..., run at the first step at or after
+    # each (5.14, 5.26, 5.38, 5.5, 5.64), duplicates or not.  Put back a period after each run
+    # instead, the schedule drifted a step late every period (5.14, 5.28, 5.42 ...), and a
+    # timed motion at 8 Hz ended 0.36 deg off.
+    clock = node.get_clock()
+    clock.set_ros_time_override(Time(nanoseconds=5_000_000_000))
+    ticks = []
+    timer = node.create_timer(0.125, lambda: ticks.append(clock.now().nanoseconds))
+    take_part(node)
+    for t_ns in range(5_020_000_000, 5_660_000_000, 20_000_000):
+        clock.set_ros_time_override(Time(nanoseconds=t_ns))
+        while timer.is_ready():  # an event, and a duplicate of it, as a loaded executor runs
+            for _ in range(2):
+                timer.handle.call_timer()
+                timer.callback()
+    assert ticks == [5_140_000_000, 5_260_000_000, 5_380_000_000, 5_500_000_000, 5_640_000_000]
+
+
 def test_duplicate_events_put_the_schedule_back_once_per_clock_time(node):
     # On a lossy link a loaded EventsExecutor ran one motion's tick event thousands of times
     # at one clock time, each run moving rcl's schedule a period on before the callback.  Put

@@ -157,6 +157,7 @@ class MessageCounter:
                 self._after()
             return counted
         fired_at = [None]
+        due_at = [None]  # when rcl's schedule next had it due, at its last real call [ns]
         put_back_at = [None]
 
         def on_schedule(*args):
@@ -174,20 +175,27 @@ class MessageCounter:
             # So the first duplicate at a time puts it back at once (the update that causes is
             # most often done before the clock moves); later ones leave the timer ahead until
             # just before its clock changes (_put_back_ahead).
-            # (A clock that went back, replayed or restarted, starts the schedule afresh.)
+            # (A clock that went back, replayed or restarted, starts the schedule afresh.)  The
+            # schedule put back is rcl's: due times a period apart from the first, each run at
+            # the first clock time at or after it (not a period after the run, which drifts
+            # by up to a clock step each period when the period is no whole number of steps).
             if timer.is_canceled():
                 return  # an event queued before the cancel: resetting would un-cancel it
             now_ns = timer.clock.now().nanoseconds
-            if fired_at[0] is not None and fired_at[0] <= now_ns:
-                due_ns = fired_at[0] + timer.timer_period_ns
-                if now_ns < due_ns:
-                    if put_back_at[0] != now_ns:
-                        put_back_at[0] = now_ns
-                        _next_call_at(timer, now_ns, due_ns)
-                    else:
-                        self._put_back_later(timer, due_ns)
-                    return
+            if fired_at[0] is not None and fired_at[0] <= now_ns < due_at[0]:
+                due_ns = due_at[0]
+                if put_back_at[0] != now_ns:
+                    put_back_at[0] = now_ns
+                    _next_call_at(timer, now_ns, due_ns)
+                else:
+                    self._put_back_later(timer, due_ns)
+                return
             fired_at[0] = now_ns
+            # rcl moved the schedule on before this event ran.  Due now or before if it fell a
+            # period behind (or nothing called rcl): then a period from now, once at a time.
+            until_ns = timer.time_until_next_call()
+            due_at[0] = now_ns + (until_ns if until_ns and until_ns > 0
+                                  else timer.timer_period_ns)
             callback(*args)
             self._after()
         return on_schedule
