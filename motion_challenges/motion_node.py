@@ -66,7 +66,8 @@ COMMON_PARAMETERS = (
          '(the robot). false: any cmd_vel subscriber will do (a robot without odometry); the '
          'open-loop motions then run blind and cannot confirm where the robot ended.'),
     Spec('odom_timeout', 1.0,
-         'Closed loop: stop and fail when no odometry came for this long mid-motion '
+         'Stop and fail when no odometry came for this long mid-motion (closed loop), or, on '
+         'sim time, when simulated time stood still this long with no word from the simulator '
          '[s, wall time].',
          low=0.0, high=3600.0, low_open=True, live=True),
     Spec('plot_file', '',
@@ -153,6 +154,9 @@ class MotionNode(Node):
         # simulator publishes /clock, and a missing simulator is exactly what to report.
         self._watchdog = self.create_timer(
             0.5, self._on_watchdog, clock=Clock(clock_type=ClockType.STEADY_TIME))
+        # On sim time, the clock as the watchdog last saw it, and when it last saw it move.
+        self._clock_seen_ns = None
+        self._clock_moved_wall = None
         # A restarted simulator's clock starts again from zero, and its first odometry may
         # reach us only once its time has passed the last we had: watch the clock itself.
         self._time_jump = self.get_clock().create_jump_callback(
@@ -332,6 +336,25 @@ class MotionNode(Node):
             self._watch_odometry()
         elif self._ready and self.state == MotionState.WAITING:
             self._watch_start()
+        if self.sim_time and self.state in (MotionState.RUNNING, MotionState.SETTLING):
+            self._watch_clock()
+
+    def _watch_clock(self):
+        # On sim time the ticks come with the clock: a simulator that died mid-motion stops
+        # them, and an open-loop motion would wait for its next tick forever.
+        now_ns, wall = self.now_ns(), time.monotonic()
+        if now_ns != self._clock_seen_ns or self._clock_moved_wall is None:
+            self._clock_seen_ns, self._clock_moved_wall = now_ns, wall
+            return
+        last_sign = self._clock_moved_wall
+        if self.lockstep is not None and self.lockstep.roster_wall is not None:
+            last_sign = max(last_sign, self.lockstep.roster_wall)  # holding it, as above
+        silent = wall - last_sign
+        if silent > self.params.odom_timeout:
+            self.finish(EXIT_FAILED, f'Simulated time stood still at {now_ns / _NS:.3f} s for '
+                                     f'{silent:.1f} s mid-motion with no word from the '
+                                     'simulator; stopped the robot (is the simulator still '
+                                     'running?)')
 
     def _watch_odometry(self):
         publishers = self.count_publishers(self._odom_topic)

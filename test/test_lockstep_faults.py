@@ -188,6 +188,23 @@ def test_a_cmd_vel_listener_is_not_the_robot(graph):
     assert angle_error(pose_of(probe.odom)[2], math.radians(90.0)) < math.radians(30.0)
 
 
+def test_a_timed_motion_whose_simulator_dies_stops_and_fails(graph):
+    # On sim time an open-loop motion's ticks come with the clock: with the simulator killed
+    # mid-motion it waited for its next tick forever, silent (found running it as a user).
+    sim = start('unicycle_sim', 'publish_clock:=true', 'real_time_factor:=2.0')
+    probe = graph.probe(use_sim_time=False, listen_only=True)
+    motion = start('timed_out_and_back', 'use_sim_time:=true')
+    try:
+        assert graph.spin_until(lambda: harness.is_moving(probe.odom), 20.0), motion.describe()
+        sim.kill()
+        code, output = finish(graph, motion, timeout=10.0)
+    finally:
+        stop(sim)
+    assert code == 1, output
+    assert 'with no word from the simulator; stopped the robot' in output, output
+    assert 'Traceback' not in output and 'Done' not in output, output
+
+
 def test_without_a_robot_the_motion_gives_up_and_never_says_done(graph):
     graph.probe('cmd_vel_listener', use_sim_time=False, listen_only=True,
                 odom_topic='unused_odom', record_commands=True)
