@@ -53,6 +53,14 @@ class Pose:
     def distance_to(self, other):
         return math.hypot(self.x - other.x, self.y - other.y)
 
+    def error_text(self, goal_x, goal_y, goal_yaw):
+        """Describe how far this pose is from the goal pose (metres and degrees)."""
+        error_m = math.hypot(self.x - goal_x, self.y - goal_y)
+        error_deg = math.degrees(abs(math.remainder(self.yaw - goal_yaw, 2.0 * math.pi)))
+        return (f'goal ({goal_x:.4f}, {goal_y:.4f}, {math.degrees(goal_yaw):.3f} deg), '
+                f'achieved ({self.x:.4f}, {self.y:.4f}, {math.degrees(self.yaw):.3f} deg): '
+                f'error {error_m * 1000:.3f} mm, {error_deg:.4f} deg')
+
 
 class CommandLog:
     """

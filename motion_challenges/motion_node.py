@@ -28,7 +28,6 @@ odometry checks in controllers.py, the open-loop plans in plans.py (see timed_mo
 """
 
 import enum
-import math
 import time
 
 from geometry_msgs.msg import Twist
@@ -492,13 +491,4 @@ class MotionNode(Node):
         """Return the closing line's goal-versus-achieved text (end_odom may be None)."""
         if self.start_odom is None or end_odom is None:
             return 'no odometry, achieved pose unknown'
-        return pose_error_text(end_odom, *self.goal_pose(self.start_odom))
-
-
-def pose_error_text(end, goal_x, goal_y, goal_yaw):
-    """Describe how far end is from the goal pose (metres and degrees)."""
-    error_m = math.hypot(end.x - goal_x, end.y - goal_y)
-    error_deg = math.degrees(abs(math.remainder(end.yaw - goal_yaw, 2.0 * math.pi)))
-    return (f'goal ({goal_x:.4f}, {goal_y:.4f}, {math.degrees(goal_yaw):.3f} deg), '
-            f'achieved ({end.x:.4f}, {end.y:.4f}, {math.degrees(end.yaw):.3f} deg): '
-            f'error {error_m * 1000:.3f} mm, {error_deg:.4f} deg')
+        return end_odom.error_text(*self.goal_pose(self.start_odom))
