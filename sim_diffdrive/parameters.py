@@ -196,7 +196,22 @@ def declare(node, specs, on_change=None):
     live = {spec.name: spec for spec in specs if spec.live}
     if live:
         _LiveParameters(node, live, values, on_change).attach()
+    _clock_chosen_at_start(node)
     return values
+
+
+def _clock_chosen_at_start(node):
+    """
+    Make rclpy's use_sim_time read-only: these nodes choose their clock once, at start.
+
+    rclpy would switch it at run time, but the simulator picks how it steps and a motion its
+    lockstep and ticks from it: switched mid-run, a motion froze and a simulator's odometry
+    stopped, with the set reported successful.
+    """
+    node.set_descriptor('use_sim_time', ParameterDescriptor(
+        name='use_sim_time', type=node.describe_parameter('use_sim_time').type,
+        description='Run on simulated time from /clock (the simulator publishes it with '
+                    'publish_clock).' + READ_ONLY_NOTE, read_only=True))
 
 
 def live_parameters(node):

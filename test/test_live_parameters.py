@@ -332,13 +332,21 @@ def test_a_simulator_process_applies_a_live_set_and_refuses_a_read_only_one(grap
     assert 'No cmd_vel for 1 s: stopping the robot' in output
 
 
-def test_a_simulator_reads_the_system_clock_until_use_sim_time_is_set(graph):
+def test_use_sim_time_is_chosen_at_start_and_refused_at_run_time(graph):
+    # Switched at run time (rclpy allows it), a motion froze and a simulator's odometry
+    # stopped, and the set said it had succeeded (found running the executables as a user).
     sim = graph.add(UnicycleSim(namespace='/live_clock', context=graph.context))
+    motion = graph.add(RotateRobot(namespace='/live_clock', context=graph.context))
+    for node in (sim, motion):
+        result = node.set_parameters([Parameter('use_sim_time', value=True)])[0]
+        assert not result.successful and 'read-only' in result.reason, result.reason
+        assert node.get_parameter('use_sim_time').value is False
     before = time.time_ns()
     now_ns = sim.now_ns()
-    assert before <= now_ns <= time.time_ns()
-    sim.set_parameters([Parameter('use_sim_time', value=True)])
-    # Simulated time from now on: no /clock has been handled since, so the clock stands where
-    # rclpy put it, far from the system clock.
-    assert sim.now_ns() == sim.get_clock().now().nanoseconds
-    assert sim.now_ns() < before - 10**18
+    assert before <= now_ns <= time.time_ns()  # still the system clock
+    # Chosen at start: simulated time.  No /clock has come, so the clock stands where rclpy put
+    # it, far from the system clock.
+    stepped = graph.add(UnicycleSim(namespace='/sim_clock', context=graph.context,
+                                    parameter_overrides=[Parameter('use_sim_time', value=True)]))
+    assert stepped.now_ns() == stepped.get_clock().now().nanoseconds
+    assert stepped.now_ns() < before - 10**18
