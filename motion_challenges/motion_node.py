@@ -35,6 +35,7 @@ from geometry_msgs.msg import TwistStamped
 from motion_challenges.controllers import CommandLog
 from motion_challenges.controllers import odometry_fault
 from motion_challenges.odometry import OdomPose
+from motion_challenges.specs import COMMON_PARAMETERS
 from nav_msgs.msg import Odometry
 from rclpy.clock import Clock
 from rclpy.clock import ClockType
@@ -44,7 +45,6 @@ from rclpy.node import Node
 from sim_diffdrive.angles import YawAccumulator
 from sim_diffdrive.lockstep.participant import take_part
 from sim_diffdrive.parameters import declare
-from sim_diffdrive.parameters import Spec
 from sim_diffdrive.runtime import EXIT_FAILED
 from sim_diffdrive.runtime import EXIT_OK
 from sim_diffdrive.throttle import Throttle
@@ -53,31 +53,9 @@ _NS = 1_000_000_000
 # How long to wait for the odometry that shows where the robot came to rest: this many control
 # periods, or odom_timeout if longer.
 _SETTLE_TICKS = 20
-
-
-COMMON_PARAMETERS = (
-    Spec('start_timeout', 10.0,
-         'How long to wait for the robot (see wait_for_odom) before giving up [s, wall time], '
-         'from when the goal is known (typed).',
-         low=0.0, high=3600.0, low_open=True, live=True),
-    Spec('wait_for_odom', True,
-         'Start only once odometry has come and the node that publishes it subscribes cmd_vel '
-         '(the robot). false: any cmd_vel subscriber will do (a robot without odometry); the '
-         'open-loop motions then run blind and cannot confirm where the robot ended.'),
-    Spec('odom_timeout', 1.0,
-         'Stop and fail when no odometry came for this long mid-motion (closed loop), or, on '
-         'sim time, when simulated time stood still this long with no word from the simulator '
-         '[s, wall time].',
-         low=0.0, high=3600.0, low_open=True, live=True),
-    Spec('plot_file', '',
-         'Write a PNG of the run here: the path (start, end and goal) beside the heading and '
-         'the commanded and achieved speeds over time; empty = no plot. Needs matplotlib.',
-         live=True),
-    Spec('stamped', False,
-         'Publish geometry_msgs/TwistStamped, stamped with the node clock, instead of Twist '
-         "(ros2_control's diff_drive_controller takes only TwistStamped)."),
-    Spec('frame_id', 'base_footprint', 'With stamped: frame_id of the commands.', live=True),
-)
+# Odometry stamped this far from a wall-time node's clock, with /clock published, is on
+# simulated time [s]: further than any clock skew between two hosts.
+_CLOCKS_APART_S = 60.0
 
 
 # How a motion's closing line starts when it reached its goal (closing_line finds it).
@@ -322,6 +300,21 @@ class MotionNode(Node):
             return 'odometry on ' + self._odom_topic
         return ''
 
+    def _clock_clash(self, now_ns):
+        """Return why this node's wall clock cannot be the robot's, or '' (sim time: '')."""
+        clock_topic = self.resolve_topic_name('/clock')
+        if self.sim_time or self.odom is None or not self.count_publishers(clock_topic):
+            return ''
+        apart_s = abs(self.odom.stamp_ns - now_ns) / _NS
+        if apart_s < _CLOCKS_APART_S:
+            return ''
+        # Judged by stamps and the clock alike, the run would go wrong in ways that point
+        # elsewhere (no odometry after the stop, a jump): say what is wrong before moving.
+        return (f'Odometry on {self._odom_topic} is stamped {self.odom.stamp_ns / _NS:.3f} s, '
+                f"{apart_s:.0f} s from this node's clock (wall time), and {clock_topic} is "
+                'published: the robot runs on simulated time. Start this motion with -p '
+                'use_sim_time:=true. Nothing moved.')
+
     def _robot_node(self):
         """Return the name of a node that publishes our odometry and subscribes our cmd_vel."""
         def names(infos):
@@ -395,6 +388,10 @@ class MotionNode(Node):
             return
         if self.state == MotionState.WAITING:
             if self._missing():
+                return
+            clash = self._clock_clash(now_ns)
+            if clash:
+                self.finish(EXIT_FAILED, clash)
                 return
             if not self._primed:
                 # A first message on a new connection can take several times longer than the

@@ -38,3 +38,29 @@ def out_and_back_specs(rate_hz):
         Spec('pause', 1.0, 'Pause after each stop [s].', low=0.0, high=3600.0),
         rate_spec(rate_hz),
     )
+
+
+# Every motion declares these besides its own (motion_node.MotionNode).
+COMMON_PARAMETERS = (
+    Spec('start_timeout', 10.0,
+         'How long to wait for the robot (see wait_for_odom) before giving up [s, wall time], '
+         'from when the goal is known (typed).',
+         low=0.0, high=3600.0, low_open=True, live=True),
+    Spec('wait_for_odom', True,
+         'Start only once odometry has come and the node that publishes it subscribes cmd_vel '
+         '(the robot). false: any cmd_vel subscriber will do (a robot without odometry); the '
+         'open-loop motions then run blind and cannot confirm where the robot ended.'),
+    Spec('odom_timeout', 1.0,
+         'Stop and fail when no odometry came for this long mid-motion (closed loop), or, on '
+         'sim time, when simulated time stood still this long with no word from the simulator '
+         '[s, wall time].',
+         low=0.0, high=3600.0, low_open=True, live=True),
+    Spec('plot_file', '',
+         'Write a PNG of the run here: the path (start, end and goal) beside the heading and '
+         'the commanded and achieved speeds over time; empty = no plot. Needs matplotlib.',
+         live=True),
+    Spec('stamped', False,
+         'Publish geometry_msgs/TwistStamped, stamped with the node clock, instead of Twist '
+         "(ros2_control's diff_drive_controller takes only TwistStamped)."),
+    Spec('frame_id', 'base_footprint', 'With stamped: frame_id of the commands.', live=True),
+)

@@ -62,6 +62,22 @@ def test_without_a_robot_it_gives_up_start_timeout_after_the_answers(graph):
     assert START_TIMEOUT <= waited <= START_TIMEOUT + 1.0
 
 
+def test_on_wall_time_against_a_simulator_that_owns_time_it_says_so_and_never_moves(
+        graph, capfd):
+    # Without use_sim_time beside a simulator publishing /clock, it drove on its wall clock
+    # and then blamed the simulator ("no odometry came after the stop").
+    graph.sim()
+    node = rotate_robot(graph, use_sim_time=False)
+    node.start(RotationRequest(90.0, 45.0, False))
+    graph.step()  # odometry at simulated time 0.02 s; the motion ticks on its wall clock
+    assert graph.spin_until(lambda: node.done, timeout=5.0)
+    assert node.exit_code == EXIT_FAILED
+    assert node.start_ns is None  # never started
+    graph.step_for(0.1)
+    assert graph.pose() == (0.0, 0.0, 0.0)
+    assert 'Start this motion with -p use_sim_time:=true. Nothing moved.' in capfd.readouterr().err
+
+
 def test_the_state_goes_waiting_running_settling_finished(graph):
     graph.sim()
     node = rotate_robot(graph, mode='odom')
