@@ -48,6 +48,9 @@ _REACTION_DECAY = 0.98
 # In lockstep the clock timer only paces and watches for laggards (answers drive the steps),
 # so it need not fire more often than this [s]; without members it catches up in bursts.
 _LOCKSTEP_TICK_S = 0.0005
+# How often a simulator that owns time looks for another publisher on its clock topic [s, wall]:
+# at a high real_time_factor a graph query every step would cost more than the step.
+_OWNERS_CHECK_S = 1.0
 
 
 def make_clock(sim, stepped=False):
@@ -145,6 +148,8 @@ class OwnedClock:
         # When the last step was taken [s, monotonic], and the wall time a step may take.
         self.wall = time.monotonic()
         self.budget_s = sim.step_ns / _NS / sim.params.real_time_factor
+        self._owners_checked = self.wall
+        self._warned_owners = False
 
     def start(self):
         self.sim.fleet.integrated_ns[:] = 0
@@ -166,6 +171,9 @@ class OwnedClock:
         self.sim.publish_odom()
         self.publish()
         self.wall = time.monotonic()
+        if self.wall - self._owners_checked >= _OWNERS_CHECK_S:
+            self._owners_checked = self.wall
+            self.check_owners()
         self.after_step()
 
     def before_step(self, step_ns):
@@ -180,6 +188,24 @@ class OwnedClock:
         self.publisher.publish(self._data)
         if self.sim.taps:
             self.sim.taps.write(self.topic, self._data, self.sim_ns)
+
+    def check_owners(self):
+        """Warn once when another node publishes on this clock's topic too (until it leaves)."""
+        sim = self.sim
+        owners = sim.get_publishers_info_by_topic(self.topic)
+        if len(owners) > 1 and not self._warned_owners:
+            self._warned_owners = True
+            names = ', '.join(sorted(
+                f"{info.node_namespace.rstrip('/')}/{info.node_name}" for info in owners))
+            namespace = sim.get_namespace().rstrip('/') or '/robot1'
+            sim.get_logger().warning(
+                f'{len(owners)} nodes publish on {self.topic} ({names}): their simulated times '
+                'interleave, so the runs on sim time jump between them and fail; give each '
+                f'simulator its own clock (e.g. -r /clock:={namespace}/clock for it and the '
+                'nodes on its time), or let one own time and the others follow it with '
+                'use_sim_time (docs/time.md)')
+        elif len(owners) <= 1:
+            self._warned_owners = False
 
     def repeat(self):
         """Publish the current /clock again, for a participant that may have lost it."""

@@ -28,6 +28,7 @@ than the wall clock, and publishes it on ``/clock`` for nodes that run with ``us
 import re
 
 import numpy as np
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 from rclpy.time import Time
 from sim_diffdrive.cdr import covariance
@@ -38,6 +39,8 @@ from sim_diffdrive.parameters import Spec
 from sim_diffdrive.runtime import run
 from sim_diffdrive.sim.clock import make_clock
 from sim_diffdrive.sim.fleet import Fleet
+from sim_diffdrive.sim.odom_tf import check_frames
+from sim_diffdrive.sim.odom_tf import DEFAULT_FRAMES
 from sim_diffdrive.sim.odom_tf import OdomTransform
 from sim_diffdrive.sim.robot import Robot
 from sim_diffdrive.taps import open_taps
@@ -133,6 +136,16 @@ class UnicycleSim(Node):
         ``self.clock.step()`` (SimGraph does, once the graph has settled).
         """
         super().__init__('unicycle_sim', **kwargs)
+        try:
+            self._build(stepped)
+        except BaseException:
+            # Refused (a bad parameter): destroyed here, not left to the garbage collector,
+            # which may get to it anywhere, even in a process forked later (flake8's workers
+            # in a test run crashed on the DDS handles they inherited).
+            self.destroy_node()
+            raise
+
+    def _build(self, stepped):
         self.params = declare(self, PARAMETERS, on_change=self._on_parameter)
         p = self.params
         if p.publish_clock and self.get_parameter('use_sim_time').value:
@@ -140,6 +153,10 @@ class UnicycleSim(Node):
                 "parameter 'publish_clock' is true, so this node owns time: "
                 "'use_sim_time' must be false for it")
         names = robot_names(p.robots)
+        # Of two frames that are one, name the one changed from its default (odom's if both).
+        blame = ('odom_frame_id' if p.odom_frame_id != DEFAULT_FRAMES['odom_frame_id']
+                 else 'base_frame_id')
+        check_frames(self.get_namespace(), names, self._frame_values(), blame)
         if p.initial_poses and len(p.initial_poses) != 3 * len(names):
             raise ParameterError(
                 f"parameter 'initial_poses' must hold x, y, yaw for each of the {len(names)} "
@@ -154,6 +171,9 @@ class UnicycleSim(Node):
         # Where else the simulator's traffic goes (an MCAP file, Foxglove): see taps/.
         self.taps = open_taps(self)
         self.robots = [Robot(self, i, name) for i, name in enumerate(names)]
+        # A frame is checked against the other's value and the robots' prefixes, which a Spec
+        # cannot know; added after declare()'s callbacks, this one runs before them.
+        self.add_on_set_parameters_callback(self._refuse_bad_frames)
         self._odometry = self._odometry_layout()
         self._tf = OdomTransform(self, self._frames()) if p.publish_tf else None
         self._path_every = max(1, round(p.rate_hz / p.path_rate_hz))
@@ -228,6 +248,24 @@ class UnicycleSim(Node):
         # The others are read where they are used: initial_* by ~/reset, lockstep_timeout by
         # the lockstep owner, max_command_age by the stamped subscription.
 
+    def _frame_values(self):
+        return {name: getattr(self.params, name) for name in DEFAULT_FRAMES}
+
+    def _refuse_bad_frames(self, parameters):
+        """Refuse a live set of frames that tf2 could not use; the frames stay as they were."""
+        frames = self._frame_values()
+        changed = [p.name for p in parameters
+                   if p.name in frames and isinstance(p.value, str)]  # else the Spec refuses
+        if not changed:
+            return SetParametersResult(successful=True)
+        frames.update((p.name, p.value) for p in parameters if p.name in changed)
+        try:
+            check_frames(self.get_namespace(), [robot.name for robot in self.robots], frames,
+                         changed[-1])
+        except ParameterError as error:
+            return SetParametersResult(successful=False, reason=str(error))
+        return SetParametersResult(successful=True)
+
     def _on_reset(self, request, response):
         self.advance_all(self.now_ns())
         for robot, pose in zip(self.robots, self._initial_poses(len(self.robots))):
@@ -288,7 +326,8 @@ class UnicycleSim(Node):
         self.taps.close()
 
     def destroy_node(self):
-        self.taps.close()
+        if hasattr(self, 'taps'):  # none yet when refused while being built
+            self.taps.close()
         return super().destroy_node()
 
 

@@ -17,16 +17,21 @@ The simulator's odometry as a transform on ``/tf``, and the frame names both car
 
 ``/tf`` is global (absolute, whatever the node's namespace), so robots side by side tell their
 frames apart by a prefix: the node's namespace without its leading slash, as tf2 and the
-multi-robot setups of Nav2 and TurtleBot name them (``robot1/odom``).
+multi-robot setups of Nav2 and TurtleBot name them (``robot1/odom``).  Frames that tf2 would
+reject are refused by name (``check_frames``), at start and as a live set.
 """
 
 from rclpy.qos import QoSProfile
 from sim_diffdrive.cdr import TransformLayout
+from sim_diffdrive.parameters import ParameterError
 from tf2_msgs.msg import TFMessage
 
 TF_TOPIC = '/tf'
 # What tf2_ros's TransformBroadcaster uses (DynamicBroadcasterQoS): reliable, volatile, 100 deep.
 TF_QOS = QoSProfile(depth=100)
+# The parameters that name a robot's frames, and their defaults (the Specs' in node.py), which
+# alone get the namespace's prefix.
+DEFAULT_FRAMES = {'odom_frame_id': 'odom', 'base_frame_id': 'base_footprint'}
 
 
 def namespaced_frame(namespace, frame):
@@ -38,6 +43,47 @@ def namespaced_frame(namespace, frame):
 def resolve_frame(namespace, frame, default):
     """Return the frame a node in namespace uses: the default gets the prefix, others not."""
     return namespaced_frame(namespace, frame) if frame == default else frame
+
+
+def published_frame(namespace, robot, parameter, value):
+    """Return the frame that value of parameter gives robot ('' for a simulator's one robot)."""
+    frame = resolve_frame(namespace, value, DEFAULT_FRAMES[parameter])
+    return namespaced_frame(robot, frame) if robot else frame
+
+
+def check_frames(namespace, robots, frames, blame):
+    """
+    Raise ParameterError, naming the parameter, if tf2 could not use the frames given.
+
+    frames maps each parameter of DEFAULT_FRAMES to its value; robots are the simulator's
+    robot names ('' for its one robot).  Both frames are compared as each robot publishes
+    them, after the prefixes; blame is the parameter named when they are one frame.
+    """
+    for parameter, value in frames.items():
+        why = _unusable(value)
+        if why:
+            raise ParameterError(f"parameter '{parameter}' {why}; got {value!r}")
+    other = next(name for name in DEFAULT_FRAMES if name != blame)
+    for robot in robots:
+        odom, base = (published_frame(namespace, robot, parameter, frames[parameter])
+                      for parameter in DEFAULT_FRAMES)
+        if odom == base:
+            raise ParameterError(
+                f"parameter '{blame}' gives the same frame as '{other}', {odom!r}: odometry "
+                f'and /tf would carry a transform from {odom} to itself, which tf2 rejects; '
+                f'got {frames[blame]!r}')
+
+
+def _unusable(frame):
+    """Return why tf2 cannot use frame as a frame id, or None."""
+    if not frame.strip():
+        return 'must name a frame, not be empty'
+    if any(c.isspace() for c in frame):
+        return 'must not hold whitespace'
+    if frame.startswith('/'):
+        # tf2 refuses it in a lookup, and an initialpose's frame is compared without it.
+        return "must not start with '/' (tf2 frame ids have none: 'map', not '/map')"
+    return None
 
 
 class OdomTransform:

@@ -41,8 +41,7 @@ from sim_diffdrive.angles import yaw_from_quaternion
 from sim_diffdrive.cdr import read_twist
 from sim_diffdrive.cdr import read_twist_stamped
 from sim_diffdrive.cdr import UnsupportedEncoding
-from sim_diffdrive.sim.odom_tf import namespaced_frame
-from sim_diffdrive.sim.odom_tf import resolve_frame
+from sim_diffdrive.sim.odom_tf import published_frame
 from sim_diffdrive.throttle import Throttle
 
 _NS = 1_000_000_000
@@ -215,10 +214,7 @@ class Robot:
 
     def set_frame(self, parameter, value):
         """Use value for odom_frame_id or base_frame_id (the default frames get a prefix)."""
-        default = 'odom' if parameter == 'odom_frame_id' else 'base_footprint'
-        frame = resolve_frame(self.sim.get_namespace(), value, default)
-        if self.name:
-            frame = namespaced_frame(self.name, frame)
+        frame = published_frame(self.sim.get_namespace(), self.name, parameter, value)
         if parameter == 'odom_frame_id':
             self.odom_frame = frame
             self.path.clear()  # a path is in one frame

@@ -1,0 +1,271 @@
+# Copyright 2026 motion_challenges contributors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+What ``unicycle_sim`` refuses or warns about in its own setup: frames and a second clock owner.
+
+Frame names that tf2 cannot use (one frame for both ends of the odometry, an empty name, a
+name with whitespace or a leading '/') are refused by name, at start (exit 2) and as a live
+set (the frames stay).  A simulator that owns ``/clock`` warns once when another node
+publishes on the same clock topic.
+"""
+
+import os
+import subprocess
+import time
+
+import pytest
+from rcl_interfaces.msg import Parameter as ParameterMsg
+from rcl_interfaces.srv import SetParameters
+from rclpy.node import Node
+from rclpy.parameter import get_parameter_value
+from rclpy.parameter import Parameter
+from rosgraph_msgs.msg import Clock as ClockMsg
+from sim_diffdrive.parameters import ParameterError
+from sim_diffdrive.sim.node import UnicycleSim
+
+
+class Logs:
+    """Stand in for a node's logger and keep what it was told."""
+
+    def __init__(self):
+        self.lines = []
+
+    def __getattr__(self, level):
+        return lambda text, **_: self.lines.append((level, text))
+
+    def clock_warnings(self):
+        return [text for level, text in self.lines
+                if level == 'warning' and 'publish on' in text and 'clock' in text]
+
+
+def overrides(**params):
+    return [Parameter(name, value=value) for name, value in params.items()]
+
+
+def set_param(graph, client, name, text):
+    """Set name from text as ``ros2 param set`` does, through the service; return the result."""
+    assert graph.spin_until(client.service_is_ready, timeout=10.0)
+    parameter = ParameterMsg(name=name, value=get_parameter_value(text))
+    future = client.call_async(SetParameters.Request(parameters=[parameter]))
+    assert graph.spin_until(future.done, timeout=5.0, poll=0.001)
+    return future.result().results[0]
+
+
+def frames(odom):
+    return odom.header.frame_id, odom.child_frame_id
+
+
+# -- frames at start ---------------------------------------------------------------------------
+
+@pytest.mark.parametrize('namespace, params, named', [
+    # One frame at both ends: tf2 rejects base_footprint -> base_footprint.
+    ('/', {'odom_frame_id': 'base_footprint'}, 'odom_frame_id'),
+    ('/', {'base_frame_id': 'odom'}, 'base_frame_id'),
+    ('/', {'odom_frame_id': 'base_link', 'base_frame_id': 'base_link'}, 'odom_frame_id'),
+    # Compared as published: in /robot1 the default base frame is robot1/base_footprint.
+    ('/robot1', {'odom_frame_id': 'robot1/base_footprint'}, 'odom_frame_id'),
+    # With robots every frame gets the robot's prefix: robot1/base_footprint at both ends.
+    ('/', {'robots': ['robot1', 'robot2'], 'odom_frame_id': 'base_footprint'}, 'odom_frame_id'),
+    # Names tf2 cannot use.
+    ('/', {'odom_frame_id': ''}, 'odom_frame_id'),
+    ('/', {'odom_frame_id': '   '}, 'odom_frame_id'),
+    ('/', {'base_frame_id': 'base link'}, 'base_frame_id'),
+    ('/', {'base_frame_id': 'base_link\t'}, 'base_frame_id'),
+    ('/', {'odom_frame_id': '/map'}, 'odom_frame_id'),
+    ('/robot1', {'base_frame_id': '/base_link'}, 'base_frame_id'),
+])
+def test_a_bad_frame_at_start_is_refused_by_name(ros_context, namespace, params, named):
+    with pytest.raises(ParameterError) as info:
+        UnicycleSim(namespace=namespace, context=ros_context,
+                    parameter_overrides=overrides(**params))
+    assert f"parameter '{named}'" in str(info.value)
+
+
+@pytest.mark.parametrize('params', [{'odom_frame_id': '/map'}, {'initial_poses': [0.0]}])
+def test_a_simulator_refused_at_start_leaves_no_node_behind(graph, params):
+    # Refused after its parameter callbacks were attached (reference cycles), a node waited
+    # for the garbage collector, which once collected it in the workers that test_flake8's
+    # pool had forked from the pytest process: its DDS handles crashed them, and the pool
+    # waited forever for their results.
+    with pytest.raises(ParameterError):
+        UnicycleSim(namespace='/refused', context=graph.context,
+                    parameter_overrides=overrides(**params))
+    observer = graph.probe('observer', use_sim_time=False, listen_only=True)
+    assert not [name for name, namespace in observer.get_node_names_and_namespaces()
+                if namespace == '/refused']
+
+
+@pytest.mark.parametrize('namespace, params, expected', [
+    # In /robot1 these are two frames: base_footprint -> robot1/base_footprint.
+    ('/robot1', {'odom_frame_id': 'base_footprint'}, ('base_footprint', 'robot1/base_footprint')),
+    ('/', {'odom_frame_id': 'map', 'base_frame_id': 'base_link'}, ('map', 'base_link')),
+])
+def test_distinct_frames_start(graph, namespace, params, expected):
+    sim = graph.add_clock_owner(UnicycleSim(
+        stepped=True, namespace=namespace, context=graph.context, parameter_overrides=overrides(
+            publish_clock=True, lockstep=False, **params)))
+    assert sim.robots[0].frames == expected
+
+
+@pytest.mark.parametrize('param, named', [
+    ('odom_frame_id:=base_footprint', 'odom_frame_id'),
+    ('odom_frame_id:=/map', 'odom_frame_id'),
+    ('base_frame_id:=base link', 'base_frame_id'),
+])
+def test_a_simulator_process_with_a_bad_frame_exits_2_naming_it(procs, param, named):
+    proc = procs('bad_frame', 'unicycle_sim', '--ros-args', '-p', param)
+    try:
+        code = proc.wait(30.0)
+    except subprocess.TimeoutExpired:
+        pytest.fail(f'still running\n{proc.describe()}')
+    output = proc.output()
+    assert code == 2 and f"parameter '{named}'" in output, proc.describe()
+    assert 'Traceback' not in output
+
+
+# -- frames set live ---------------------------------------------------------------------------
+
+@pytest.mark.parametrize('name, text', [
+    ('odom_frame_id', 'base_footprint'),
+    ('base_frame_id', 'odom'),
+    ('odom_frame_id', "''"),
+    ('odom_frame_id', "'  '"),
+    ('base_frame_id', "'base link'"),
+    ('odom_frame_id', '/map'),
+])
+def test_a_bad_frame_set_live_is_refused_by_name_and_the_frames_stay(graph, name, text):
+    sim = graph.sim()
+    probe = graph.probe()
+    client = probe.create_client(SetParameters, '/unicycle_sim/set_parameters')
+    graph.step_for(0.1)
+    assert frames(probe.odom) == ('odom', 'base_footprint')
+    result = set_param(graph, client, name, text)
+    assert not result.successful
+    assert f"parameter '{name}'" in result.reason
+    seen = len(probe.odoms)
+    graph.step_for(0.1)
+    assert {frames(o) for o in probe.odoms[seen:]} == {('odom', 'base_footprint')}
+    assert (sim.params.odom_frame_id, sim.params.base_frame_id) == ('odom', 'base_footprint')
+    # A refusal does not stick: a good frame is taken next.
+    assert set_param(graph, client, 'odom_frame_id', 'map').successful
+    graph.step()
+    assert frames(probe.odom) == ('map', 'base_footprint')
+
+
+def test_a_frame_set_live_is_compared_as_the_robots_publish_it(graph):
+    sim = graph.sim(robots=['robot1', 'robot2'])
+    probe = graph.probe()
+    client = probe.create_client(SetParameters, '/unicycle_sim/set_parameters')
+    graph.step()
+    # base_footprint becomes robot1/base_footprint: the robot's base frame.
+    result = set_param(graph, client, 'odom_frame_id', 'base_footprint')
+    assert not result.successful and "parameter 'odom_frame_id'" in result.reason
+    graph.step()
+    assert frames(graph.odom('robot2')) == ('robot2/odom', 'robot2/base_footprint')
+    # Set together, the two frames may swap: each is checked against the other's new value.
+    result = sim.set_parameters_atomically(overrides(
+        odom_frame_id='base_footprint', base_frame_id='odom'))
+    assert result.successful, result.reason
+    graph.step()
+    assert frames(graph.odom('robot2')) == ('robot2/base_footprint', 'robot2/odom')
+
+
+# -- a second clock owner ----------------------------------------------------------------------
+
+def clock_owner(graph, namespace, logs):
+    """Add a simulator in namespace that owns /clock on its own wall timer; log into logs."""
+    sim = UnicycleSim(namespace=namespace, context=graph.context, parameter_overrides=overrides(
+        publish_clock=True, lockstep=False, real_time_factor=1.0))
+    sim.get_logger = lambda: logs
+    return graph.add(sim)
+
+
+# A clock topic of this test run alone: a simulator that another test left on /clock cannot make
+# a lone owner warn or keep one from seeing itself alone again.
+_CLOCK = f'/sim_checks_{os.getpid()}/clock'
+
+
+def stepped_owner(graph):
+    """Add a simulator that the graph steps, on the clock topic _CLOCK."""
+    return graph.add_clock_owner(UnicycleSim(
+        stepped=True, context=graph.context, cli_args=['--ros-args', '-r', f'/clock:={_CLOCK}'],
+        parameter_overrides=overrides(publish_clock=True, lockstep=False)))
+
+
+def step_wall(graph, seconds, until=lambda: False):
+    """Step the graph for seconds of wall time, or until until() holds; return until()."""
+    deadline = time.monotonic() + seconds
+    while not until() and time.monotonic() < deadline:
+        graph.step()
+    return until()
+
+
+def test_two_simulators_on_one_clock_each_warn_once(graph):
+    first, second = Logs(), Logs()
+    clock_owner(graph, '/robot1', first)
+    clock_owner(graph, '/robot2', second)
+    assert graph.spin_until(
+        lambda: first.clock_warnings() and second.clock_warnings(), timeout=10.0), (
+        first.lines, second.lines)
+    graph.spin_for(2.5)  # two more looks at the graph at least
+    for logs, namespace in ((first, '/robot1'), (second, '/robot2')):
+        warnings = logs.clock_warnings()
+        assert len(warnings) == 1, warnings
+        assert 'nodes publish on /clock (' in warnings[0]
+        assert '/robot1/unicycle_sim' in warnings[0] and '/robot2/unicycle_sim' in warnings[0]
+        assert 'interleave' in warnings[0]
+        assert f'-r /clock:={namespace}/clock' in warnings[0]
+
+
+def test_the_warning_comes_again_only_after_the_other_owner_left_and_came_back(
+        graph, monkeypatch):
+    sim = stepped_owner(graph)
+    logs = Logs()
+    monkeypatch.setattr(sim, 'get_logger', lambda: logs)
+    other = Node('other_clock', context=graph.context)
+    try:
+        publisher = other.create_publisher(ClockMsg, _CLOCK, 1)
+        assert step_wall(graph, 10.0, lambda: logs.clock_warnings())
+        step_wall(graph, 2.5)
+        assert len(logs.clock_warnings()) == 1
+        assert f'2 nodes publish on {_CLOCK}' in logs.clock_warnings()[0]
+        assert '/other_clock' in logs.clock_warnings()[0]
+        other.destroy_publisher(publisher)
+        step_wall(graph, 2.5)  # the simulator saw itself alone again
+        assert len(logs.clock_warnings()) == 1
+        other.create_publisher(ClockMsg, _CLOCK, 1)
+        assert step_wall(graph, 10.0, lambda: len(logs.clock_warnings()) == 2)
+        step_wall(graph, 2.5)
+        assert len(logs.clock_warnings()) == 2
+    finally:
+        other.destroy_node()
+
+
+def test_a_lone_clock_owner_does_not_warn_and_looks_once_a_second(graph, monkeypatch):
+    sim = stepped_owner(graph)
+    logs = Logs()
+    monkeypatch.setattr(sim, 'get_logger', lambda: logs)
+    looks = []
+    look = sim.get_publishers_info_by_topic
+    monkeypatch.setattr(sim, 'get_publishers_info_by_topic',
+                        lambda topic, **kwargs: looks.append(topic) or look(topic, **kwargs))
+    start = time.monotonic()
+    step_wall(graph, 2.5)
+    seconds = time.monotonic() - start
+    assert logs.clock_warnings() == [] and not [
+        text for level, text in logs.lines if level == 'warning'], logs.lines
+    clock_looks = [topic for topic in looks if topic == _CLOCK]
+    # Once a wall second, however many steps: not once per step.
+    assert 2 <= len(clock_looks) <= seconds + 1, (clock_looks, graph.steps)
