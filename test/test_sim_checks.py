@@ -33,6 +33,7 @@ from rclpy.parameter import get_parameter_value
 from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock as ClockMsg
 from sim_diffdrive.parameters import ParameterError
+import sim_diffdrive.sim.clock as clock_module
 from sim_diffdrive.sim.node import UnicycleSim
 
 
@@ -184,6 +185,15 @@ def test_a_frame_set_live_is_compared_as_the_robots_publish_it(graph):
 
 # -- a second clock owner ----------------------------------------------------------------------
 
+LOOK_S = 0.1  # how often a clock owner looks for others in these tests [s, wall]
+
+
+@pytest.fixture
+def looks_often(monkeypatch):
+    """Have a clock owner look for others every 0.1 s (once a wall second as shipped)."""
+    monkeypatch.setattr(clock_module, '_OWNERS_CHECK_S', LOOK_S)
+
+
 def clock_owner(graph, namespace, logs):
     """Add a simulator in namespace that owns /clock on its own wall timer; log into logs."""
     sim = UnicycleSim(namespace=namespace, context=graph.context, parameter_overrides=overrides(
@@ -212,14 +222,14 @@ def step_wall(graph, seconds, until=lambda: False):
     return until()
 
 
-def test_two_simulators_on_one_clock_each_warn_once(graph):
+def test_two_simulators_on_one_clock_each_warn_once(graph, looks_often):
     first, second = Logs(), Logs()
     clock_owner(graph, '/robot1', first)
     clock_owner(graph, '/robot2', second)
     assert graph.spin_until(
         lambda: first.clock_warnings() and second.clock_warnings(), timeout=10.0), (
         first.lines, second.lines)
-    graph.spin_for(2.5)  # two more looks at the graph at least
+    graph.spin_for(3 * LOOK_S)  # two more looks at the graph at least
     for logs, namespace in ((first, '/robot1'), (second, '/robot2')):
         warnings = logs.clock_warnings()
         assert len(warnings) == 1, warnings
@@ -230,7 +240,7 @@ def test_two_simulators_on_one_clock_each_warn_once(graph):
 
 
 def test_the_warning_comes_again_only_after_the_other_owner_left_and_came_back(
-        graph, monkeypatch):
+        graph, monkeypatch, looks_often):
     sim = stepped_owner(graph)
     logs = Logs()
     monkeypatch.setattr(sim, 'get_logger', lambda: logs)
@@ -238,22 +248,23 @@ def test_the_warning_comes_again_only_after_the_other_owner_left_and_came_back(
     try:
         publisher = other.create_publisher(ClockMsg, _CLOCK, 1)
         assert step_wall(graph, 10.0, lambda: logs.clock_warnings())
-        step_wall(graph, 2.5)
+        step_wall(graph, 3 * LOOK_S)
         assert len(logs.clock_warnings()) == 1
         assert f'2 nodes publish on {_CLOCK}' in logs.clock_warnings()[0]
         assert '/other_clock' in logs.clock_warnings()[0]
         other.destroy_publisher(publisher)
-        step_wall(graph, 2.5)  # the simulator saw itself alone again
+        step_wall(graph, 3 * LOOK_S)  # the simulator saw itself alone again
         assert len(logs.clock_warnings()) == 1
         other.create_publisher(ClockMsg, _CLOCK, 1)
         assert step_wall(graph, 10.0, lambda: len(logs.clock_warnings()) == 2)
-        step_wall(graph, 2.5)
+        step_wall(graph, 3 * LOOK_S)
         assert len(logs.clock_warnings()) == 2
     finally:
         other.destroy_node()
 
 
-def test_a_lone_clock_owner_does_not_warn_and_looks_once_a_second(graph, monkeypatch):
+def test_a_lone_clock_owner_does_not_warn_and_looks_at_its_pace_not_every_step(
+        graph, monkeypatch, looks_often):
     sim = stepped_owner(graph)
     logs = Logs()
     monkeypatch.setattr(sim, 'get_logger', lambda: logs)
@@ -262,10 +273,10 @@ def test_a_lone_clock_owner_does_not_warn_and_looks_once_a_second(graph, monkeyp
     monkeypatch.setattr(sim, 'get_publishers_info_by_topic',
                         lambda topic, **kwargs: looks.append(topic) or look(topic, **kwargs))
     start = time.monotonic()
-    step_wall(graph, 2.5)
+    step_wall(graph, 5 * LOOK_S)
     seconds = time.monotonic() - start
     assert logs.clock_warnings() == [] and not [
         text for level, text in logs.lines if level == 'warning'], logs.lines
     clock_looks = [topic for topic in looks if topic == _CLOCK]
-    # Once a wall second, however many steps: not once per step.
-    assert 2 <= len(clock_looks) <= seconds + 1, (clock_looks, graph.steps)
+    # Once per interval of wall time, however many steps: not once per step.
+    assert 2 <= len(clock_looks) <= seconds / LOOK_S + 1, (clock_looks, graph.steps)
