@@ -302,11 +302,11 @@ class MotionNode(Node):
 
     def _clock_clash(self, now_ns):
         """Return why this node's wall clock cannot be the robot's, or '' (sim time: '')."""
-        clock_topic = self.resolve_topic_name('/clock')
-        if self.sim_time or self.odom is None or not self.count_publishers(clock_topic):
+        if self.sim_time or self.odom is None:
             return ''
         apart_s = abs(self.odom.stamp_ns - now_ns) / _NS
-        if apart_s < _CLOCKS_APART_S:
+        clock_topic = self.resolve_topic_name('/clock')
+        if apart_s < _CLOCKS_APART_S or not self.count_publishers(clock_topic):
             return ''
         # Judged by stamps and the clock alike, the run would go wrong in ways that point
         # elsewhere (no odometry after the stop, a jump): say what is wrong before moving.
@@ -340,7 +340,7 @@ class MotionNode(Node):
             return
         last_sign = self._clock_moved_wall
         if self.lockstep is not None and self.lockstep.roster_wall is not None:
-            last_sign = max(last_sign, self.lockstep.roster_wall)  # holding it, as above
+            last_sign = max(last_sign, self.lockstep.roster_wall)  # as in _watch_odometry
         silent = wall - last_sign
         if silent > self.params.odom_timeout:
             self.finish(EXIT_FAILED, f'Simulated time stood still at {now_ns / _NS:.3f} s for '

@@ -173,6 +173,7 @@ def declare(node, specs, on_change=None):
     a live parameter set at runtime is checked by its Spec (refused with the same words as at
     start), stored converted (an integer for a float becomes the float), written to the
     returned values and passed to ``on_change(name, value)``, which makes it take effect.
+    rclpy's own use_sim_time is made read-only too (_clock_chosen_at_start).
     """
     values = SimpleNamespace()
     for spec in specs:

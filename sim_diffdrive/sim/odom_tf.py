@@ -29,8 +29,8 @@ from tf2_msgs.msg import TFMessage
 TF_TOPIC = '/tf'
 # What tf2_ros's TransformBroadcaster uses (DynamicBroadcasterQoS): reliable, volatile, 100 deep.
 TF_QOS = QoSProfile(depth=100)
-# The parameters that name a robot's frames, and their defaults (the Specs' in node.py), which
-# alone get the namespace's prefix.
+# The parameters that name a robot's frames and their defaults (node.py's Specs take them from
+# here); only a default gets the namespace's prefix.
 DEFAULT_FRAMES = {'odom_frame_id': 'odom', 'base_frame_id': 'base_footprint'}
 
 
