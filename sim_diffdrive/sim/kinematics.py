@@ -64,6 +64,30 @@ def limit_command(target, current, max_speed, max_accel, dt):
     return target
 
 
+def ramp(x, y, yaw, linear, angular, target_linear, target_angular, max_linear_accel,
+         max_angular_accel, ramp_step, dt):
+    """
+    Advance a pose for dt seconds while the velocity ramps towards its target.
+
+    Sub-steps of at most ramp_step seconds, each holding the velocity reached at its middle
+    (second-order accurate), while the velocity differs from the target; the rest of dt in one
+    arc.  Returns the new (x, y, yaw, linear, angular).
+    """
+    while dt > 0.0:
+        if linear != target_linear or angular != target_angular:
+            step = min(dt, ramp_step)
+            x, y, yaw = integrate(
+                x, y, yaw, limit_command(target_linear, linear, 0.0, max_linear_accel, 0.5 * step),
+                limit_command(target_angular, angular, 0.0, max_angular_accel, 0.5 * step), step)
+            linear = limit_command(target_linear, linear, 0.0, max_linear_accel, step)
+            angular = limit_command(target_angular, angular, 0.0, max_angular_accel, step)
+        else:
+            step = dt
+            x, y, yaw = integrate(x, y, yaw, linear, angular, step)
+        dt -= step
+    return x, y, yaw, linear, angular
+
+
 class UnicycleModel:
     """
     A unicycle driven by (linear, angular) velocity commands, advanced piecewise in time.
@@ -120,21 +144,10 @@ class UnicycleModel:
 
     def advance(self, dt):
         """Move the robot forward in time by dt seconds."""
-        while dt > 0.0:
-            step = min(dt, self.ramp_step) if self.ramping else dt
-            if self.ramping:
-                # Hold the velocity reached at the middle of the sub-step: second-order accurate.
-                linear = limit_command(self.target_linear, self.linear, 0.0,
-                                       self.max_linear_accel, 0.5 * step)
-                angular = limit_command(self.target_angular, self.angular, 0.0,
-                                        self.max_angular_accel, 0.5 * step)
-                self.x, self.y, self.yaw = integrate(
-                    self.x, self.y, self.yaw, linear, angular, step)
-                self.linear = limit_command(self.target_linear, self.linear, 0.0,
-                                            self.max_linear_accel, step)
-                self.angular = limit_command(self.target_angular, self.angular, 0.0,
-                                             self.max_angular_accel, step)
-            else:
-                self.x, self.y, self.yaw = integrate(
-                    self.x, self.y, self.yaw, self.linear, self.angular, step)
-            dt -= step
+        if dt <= 0.0:
+            return
+        # The state read once and written once: a FleetRobot's attributes are array entries.
+        self.x, self.y, self.yaw, self.linear, self.angular = ramp(
+            self.x, self.y, self.yaw, self.linear, self.angular, self.target_linear,
+            self.target_angular, self.max_linear_accel, self.max_angular_accel, self.ramp_step,
+            dt)
