@@ -18,7 +18,9 @@ What ``unicycle_sim`` refuses or warns about in its own setup: frames and a seco
 Frame names that tf2 cannot use (one frame for both ends of the odometry, an empty name, a
 name with whitespace or a leading '/') are refused by name, at start (exit 2) and as a live
 set (the frames stay).  A simulator that owns ``/clock`` warns once when another node
-publishes on the same clock topic.
+publishes on the same clock topic.  When it goes on without a message a participant sent, it
+says which publishers of that topic its discovery knows (on a lossy link one side can match a
+writer seconds before the other, and what is sent meanwhile never arrives).
 """
 
 import os
@@ -31,7 +33,9 @@ from rcl_interfaces.srv import SetParameters
 from rclpy.node import Node
 from rclpy.parameter import get_parameter_value
 from rclpy.parameter import Parameter
+from geometry_msgs.msg import Twist
 from rosgraph_msgs.msg import Clock as ClockMsg
+from sim_diffdrive.lockstep.participant import take_part
 from sim_diffdrive.parameters import ParameterError
 import sim_diffdrive.sim.clock as clock_module
 from sim_diffdrive.sim.node import UnicycleSim
@@ -280,3 +284,36 @@ def test_a_lone_clock_owner_does_not_warn_and_looks_at_its_pace_not_every_step(
     clock_looks = [topic for topic in looks if topic == _CLOCK]
     # Once per interval of wall time, however many steps: not once per step.
     assert 2 <= len(clock_looks) <= seconds / LOOK_S + 1, (clock_looks, graph.steps)
+
+
+# -- a message that never comes ----------------------------------------------------------------
+
+def test_a_message_that_never_comes_is_forgiven_naming_the_publishers_discovered(graph):
+    # A participant counts a command that no publisher of the simulator's discovery sent (as
+    # when the simulator has not matched its writer yet), then one from a publisher it knows.
+    clock = f'/never_{os.getpid()}/clock'
+    remap = ['--ros-args', '-r', f'/clock:={clock}']
+    sim = UnicycleSim(namespace='/never', context=graph.context, cli_args=remap,
+                      parameter_overrides=overrides(publish_clock=True, real_time_factor=20.0,
+                                                    lockstep_timeout=0.2))
+    logs = Logs()
+    sim.get_logger = lambda: logs
+    graph.add(sim)
+    ghost = graph.add(Node('ghost', namespace='/never', context=graph.context, cli_args=remap,
+                           parameter_overrides=overrides(use_sim_time=True)))
+    counter = take_part(ghost).counter
+
+    def forgiven():
+        return [text for level, text in logs.lines
+                if level == 'warning' and 'going on without those' in text]
+    assert graph.spin_until(lambda: any('takes part' in text for _, text in logs.lines), 10.0)
+    counter.sent['/never/cmd_vel'] = 1  # counted, never published
+    assert graph.spin_until(lambda: forgiven(), 10.0), logs.lines
+    assert forgiven()[0].endswith('going on without those message(s) '
+                                  '(no publisher of /never/cmd_vel discovered here)')
+    publisher = ghost.create_publisher(Twist, 'cmd_vel', 10)
+    assert graph.spin_until(lambda: sim.count_publishers('/never/cmd_vel') == 1, 10.0)
+    assert publisher.get_subscription_count() == 1
+    counter.sent['/never/cmd_vel'] += 1  # the publisher is wrapped: counted, never published
+    assert graph.spin_until(lambda: len(forgiven()) == 2, 10.0), logs.lines
+    assert forgiven()[1].endswith('(publishers of /never/cmd_vel discovered here: /never/ghost)')

@@ -234,6 +234,18 @@ class LockstepOwner:
         self._roster_version = ledger.version
         self._roster_pub.publish(String(data=roster.encode()))
 
+    def _publishers_text(self, topic):
+        """
+        Say which publishers of topic this simulator's discovery knows of.
+
+        A message that never comes may be from a sender it has not discovered yet: on a lossy
+        link one side can match a writer and reader seconds before the other.
+        """
+        names = sorted(f"{info.node_namespace.rstrip('/')}/{info.node_name}"
+                       for info in self.sim.get_publishers_info_by_topic(topic))
+        return (f'publishers of {topic} discovered here: {", ".join(names)}' if names
+                else f'no publisher of {topic} discovered here')
+
     def _give_up(self, waiting):
         """
         After lockstep_timeout: drop the silent, forgive what the live have not heard.
@@ -261,7 +273,7 @@ class LockstepOwner:
                 held.append(reason)
                 continue
             logger.warning(f'Lockstep: {ledger.describe(reason, now_ns)} within {timeout:g} s; '
-                           'going on without those message(s)')
+                           f'going on without those message(s) ({self._publishers_text(topic)})')
             ledger.forgive(pid, topic)
         self._waiting = None
         self._publish_roster()
