@@ -27,13 +27,13 @@ import os
 import subprocess
 import time
 
+from geometry_msgs.msg import Twist
 import pytest
 from rcl_interfaces.msg import Parameter as ParameterMsg
 from rcl_interfaces.srv import SetParameters
 from rclpy.node import Node
 from rclpy.parameter import get_parameter_value
 from rclpy.parameter import Parameter
-from geometry_msgs.msg import Twist
 from rosgraph_msgs.msg import Clock as ClockMsg
 from sim_diffdrive.lockstep.participant import take_part
 from sim_diffdrive.parameters import ParameterError
