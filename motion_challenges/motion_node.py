@@ -44,6 +44,7 @@ from rclpy.duration import Duration
 from rclpy.node import Node
 from sim_diffdrive.angles import YawAccumulator
 from sim_diffdrive.lockstep.participant import take_part
+from sim_diffdrive.node_names import node_names
 from sim_diffdrive.parameters import declare
 from sim_diffdrive.runtime import EXIT_FAILED
 from sim_diffdrive.runtime import EXIT_OK
@@ -317,10 +318,9 @@ class MotionNode(Node):
 
     def _robot_node(self):
         """Return the name of a node that publishes our odometry and subscribes our cmd_vel."""
-        def names(infos):
-            return {(info.node_namespace.rstrip('/') + '/' + info.node_name) for info in infos}
-        robots = (names(self.get_publishers_info_by_topic(self._odom_topic))
-                  & names(self.get_subscriptions_info_by_topic(self.cmd_pub.topic_name)))
+        publishers = self.get_publishers_info_by_topic(self._odom_topic)
+        subscribers = self.get_subscriptions_info_by_topic(self.cmd_pub.topic_name)
+        robots = set(node_names(publishers)) & set(node_names(subscribers))
         return min(robots) if robots else None
 
     def _on_watchdog(self):

@@ -42,6 +42,7 @@ from sim_diffdrive.lockstep.handshake import roster_topic
 from sim_diffdrive.lockstep.handshake import StepLedger
 from sim_diffdrive.lockstep.participant import ANSWER_QOS
 from sim_diffdrive.lockstep.participant import ROSTER_QOS
+from sim_diffdrive.node_names import node_names
 from sim_diffdrive.throttle import Throttle
 from std_msgs.msg import String
 
@@ -241,8 +242,7 @@ class LockstepOwner:
         A message that never comes may be from a sender it has not discovered yet: on a lossy
         link one side can match a writer and reader seconds before the other.
         """
-        names = sorted(f"{info.node_namespace.rstrip('/')}/{info.node_name}"
-                       for info in self.sim.get_publishers_info_by_topic(topic))
+        names = node_names(self.sim.get_publishers_info_by_topic(topic))
         return (f'publishers of {topic} discovered here: {", ".join(names)}' if names
                 else f'no publisher of {topic} discovered here')
 

@@ -38,6 +38,7 @@ from rosgraph_msgs.msg import Clock as ClockMsg
 from sim_diffdrive.cdr import clock_message
 from sim_diffdrive.lockstep.owner import LockstepOwner
 from sim_diffdrive.lockstep.participant import take_part
+from sim_diffdrive.node_names import node_names
 
 _NS = 1_000_000_000
 # Free clock pacing: wait this many times the graph's recent reaction time between steps; the
@@ -195,8 +196,7 @@ class OwnedClock:
         owners = sim.get_publishers_info_by_topic(self.topic)
         if len(owners) > 1 and not self._warned_owners:
             self._warned_owners = True
-            names = ', '.join(sorted(
-                f"{info.node_namespace.rstrip('/')}/{info.node_name}" for info in owners))
+            names = ', '.join(node_names(owners))
             namespace = sim.get_namespace().rstrip('/') or '/robot1'
             sim.get_logger().warning(
                 f'{len(owners)} nodes publish on {self.topic} ({names}): their simulated times '

@@ -1,0 +1,25 @@
+# Copyright 2026 motion_challenges contributors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""The nodes behind a topic's publishers or subscriptions, as the ROS graph names them."""
+
+
+def node_names(infos):
+    """
+    Return the fully qualified names of the nodes of endpoint infos, sorted ('/ns/name').
+
+    infos: what ``Node.get_publishers_info_by_topic`` or ``get_subscriptions_info_by_topic``
+    returns; a node with several endpoints on the topic is named once.
+    """
+    return sorted({f"{info.node_namespace.rstrip('/')}/{info.node_name}" for info in infos})
