@@ -188,6 +188,9 @@ def test_quick_run_writes_every_row(tmp_path):
     assert motions['one_simulator']['exit_codes'] == [0]
     large = rows['fleet_idle_large']
     assert large['robots'] == sizes.fleet_idle_robots
+    # --quick starts no simulator of its own for row 18: row 13's largest, idle, is measured.
+    assert large['from_row_13'] is True
+    assert large['window'] == fleet['windows'][str(sizes.fleet_idle_robots)]['idle']
     assert 0.0 < large['cores'] < 2.0 and large['steps_per_s'] > 0.0
     # The table is printed too.
     assert 'this project' in result.stdout and 'reference' in result.stdout
