@@ -28,6 +28,7 @@ import itertools
 import math
 
 from motion_challenges.plans import approach_speed
+from motion_challenges.plans import ramp
 
 NS = 1_000_000_000
 # A goal is reached once less than this is left to go [m or rad] (about 6e-6 degrees).
@@ -95,28 +96,44 @@ class CommandLog:
 
     def integral(self, since_ns, now_ns):
         """Return (metres, radians) commanded over [since_ns, now_ns]."""
-        linear = angular = 0.0
+        return self.predict(since_ns, now_ns)[0]
+
+    def predict(self, since_ns, now_ns, velocity=(0.0, 0.0), accel=(0.0, 0.0)):
+        """
+        Return ((metres, radians), (linear, angular)): the robot's way and speed at now_ns.
+
+        From since_ns, when it went at velocity, on the commands; accel (linear, angular) is
+        the robot's acceleration limit (plans.ramp), 0 for a robot that takes each command at
+        once: then the way is the commands' integral and the speed the latest command.  Before
+        the first command logged the robot is taken to stand still.
+        """
+        (linear, angular), (speed, turn_rate) = (0.0, 0.0), velocity
+        linear_accel, angular_accel = accel
         ends = itertools.chain(itertools.islice(self._entries, 1, None), ((now_ns,),))
         for (start, v, w), (end, *_) in zip(self._entries, ends):
             overlap = (min(end, now_ns) - max(start, since_ns)) / NS
             if overlap > 0.0:
-                linear += v * overlap
-                angular += w * overlap
-        return linear, angular
+                metres, speed = ramp(speed, v, linear_accel, overlap)
+                radians, turn_rate = ramp(turn_rate, w, angular_accel, overlap)
+                linear += metres
+                angular += radians
+        return (linear, angular), (speed, turn_rate)
 
 
-def odometry_fault(last, pose, commands, tolerance=JUMP_TOLERANCE):
+def odometry_fault(last, pose, commands, tolerance=JUMP_TOLERANCE, velocity=(0.0, 0.0),
+                   accel=(0.0, 0.0)):
     """
     Return why odometry pose cannot follow odometry last, or '' when it can.
 
     Time must not go back, and the robot must not have moved further than commanded (the
-    CommandLog commands) between the two stamps, nor turned more or the other way: a
+    CommandLog commands, from velocity at last, for a robot with acceleration limits accel:
+    CommandLog.predict) between the two stamps, nor turned more or the other way: a
     restarted simulator, back at its initial pose, often looks like that.
     """
     if pose.stamp_ns < last.stamp_ns:
         return (f'Odometry went back in time from {last.stamp_ns / NS:.3f} s to '
                 f'{pose.stamp_ns / NS:.3f} s')
-    metres, radians = commands.integral(last.stamp_ns, pose.stamp_ns)
+    (metres, radians), _ = commands.predict(last.stamp_ns, pose.stamp_ns, velocity, accel)
     moved = pose.distance_to(last)
     turned = math.remainder(pose.yaw - last.yaw, 2.0 * math.pi)
     # The robot may turn less than commanded (or not at all), but not more, nor the other way.
@@ -132,25 +149,29 @@ class Approach:
     """
     Nav2 Spin's speed law toward a goal distance or angle: full speed, then slow down onto it.
 
-    ``speed(remaining)`` is clamp(sqrt(2 * accel * remaining), min_speed, max_speed), capped at
-    remaining / period so that the last control period ends on the goal; None once less than
-    tolerance remains.  A min_speed above max_speed is taken as max_speed.
+    ``speed(remaining, velocity)`` is clamp(sqrt(2 * accel * remaining), min_speed,
+    max_speed), capped so that the last control period ends on the goal (plans.approach_speed:
+    for a robot whose speed ramps at robot_accel, now at velocity towards the goal, the cap
+    leaves it room to stop); None once less than tolerance remains.  A min_speed above
+    max_speed is taken as max_speed.
     """
 
-    def __init__(self, max_speed, min_speed, accel, period, tolerance=TOLERANCE):
+    def __init__(self, max_speed, min_speed, accel, period, tolerance=TOLERANCE,
+                 robot_accel=0.0):
         self.max_speed = max_speed
         self.min_speed = min(min_speed, max_speed)
         self.accel = accel
         self.period = period
         self.tolerance = tolerance
+        self.robot_accel = robot_accel
         # Refuse bad values now rather than on the first tick.
         approach_speed(1.0, self.max_speed, self.min_speed, accel, period)
 
-    def speed(self, remaining):
+    def speed(self, remaining, velocity=0.0):
         if remaining <= self.tolerance:
             return None
         return approach_speed(remaining, self.max_speed, self.min_speed, self.accel,
-                              self.period)
+                              self.period, self.robot_accel, velocity)
 
 
 class SpinController:
@@ -158,22 +179,25 @@ class SpinController:
     Turn in place by goal [rad], closed loop on the yaw turned so far (rotate_robot's odom mode).
 
     ``turned`` is the accumulated wrapped yaw from odometry since the start (so 4 pi is two
-    turns) and ``predicted`` the yaw commanded since that odometry was measured (CommandLog).
+    turns), ``predicted`` the yaw the robot turned since that odometry was measured and
+    ``turn_rate`` its angular speed now (CommandLog.predict); robot_accel is its angular
+    acceleration limit (0: it takes each command at once).
     """
 
     def __init__(self, goal, clockwise, max_speed, min_speed, accel, period,
-                 tolerance=TOLERANCE):
+                 tolerance=TOLERANCE, robot_accel=0.0):
         self.goal = goal
         self.sign = -1.0 if clockwise else 1.0
-        self.approach = Approach(max_speed, min_speed, accel, period, tolerance)
+        self.approach = Approach(max_speed, min_speed, accel, period, tolerance, robot_accel)
 
     def progress(self, turned, predicted=0.0):
         """Return how far the robot has turned in the goal's direction [rad]."""
         return self.sign * (turned + predicted)
 
-    def command(self, turned, predicted=0.0):
+    def command(self, turned, predicted=0.0, turn_rate=0.0):
         """Return the angular speed to command [rad/s], or None once the goal is reached."""
-        speed = self.approach.speed(self.goal - self.progress(turned, predicted))
+        speed = self.approach.speed(self.goal - self.progress(turned, predicted),
+                                    self.sign * turn_rate)
         return None if speed is None else self.sign * speed
 
 
@@ -192,7 +216,8 @@ class OutAndBack:
     A drive step ends when the distance from where it began reaches goal_distance, a turn step
     when the yaw turned since it began reaches goal_angle (counter-clockwise), both slowing down
     on their Approach; a pause after pause seconds.  A pause of 0 leaves the pauses out.
-    Progress is odometry plus ``predicted``: (metres, radians) commanded since it was measured.
+    Progress is odometry plus ``predicted``: (metres, radians) the robot went since it was
+    measured; ``velocity`` is its (linear, angular) speed now (CommandLog.predict).
     """
 
     def __init__(self, legs, goal_distance, goal_angle, pause, drive, turn):
@@ -224,14 +249,14 @@ class OutAndBack:
         self._index = -1
         self._next_step(now_ns, pose, turned)
 
-    def command(self, now_ns, pose, turned, predicted=(0.0, 0.0)):
+    def command(self, now_ns, pose, turned, predicted=(0.0, 0.0), velocity=(0.0, 0.0)):
         """Return (linear, angular) to command, moving on past finished steps; None at the end."""
         while self._index < len(self.steps):
             _, kind, goal = self.steps[self._index]
             if kind is Step.DRIVE:
-                command = self._drive_command(goal, pose, predicted[0])
+                command = self._drive_command(goal, pose, predicted[0], velocity[0])
             elif kind is Step.TURN:
-                command = self._turn_command(goal, turned, predicted[1])
+                command = self._turn_command(goal, turned, predicted[1], velocity[1])
             else:
                 command = self._pause_command(goal, now_ns)
             if command is not None:
@@ -248,12 +273,12 @@ class OutAndBack:
         self._step_pose = pose
         self._step_turned = turned
 
-    def _drive_command(self, goal, pose, metres):
-        speed = self._drive.speed(goal - (pose.distance_to(self._step_pose) + metres))
+    def _drive_command(self, goal, pose, metres, speed_now):
+        speed = self._drive.speed(goal - (pose.distance_to(self._step_pose) + metres), speed_now)
         return None if speed is None else (speed, 0.0)
 
-    def _turn_command(self, goal, turned, radians):
-        speed = self._turn.speed(goal - (turned - self._step_turned + radians))
+    def _turn_command(self, goal, turned, radians, turn_rate):
+        speed = self._turn.speed(goal - (turned - self._step_turned + radians), turn_rate)
         return None if speed is None else (0.0, speed)
 
     def _pause_command(self, duration, now_ns):

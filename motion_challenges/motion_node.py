@@ -95,6 +95,9 @@ class MotionNode(Node):
     """
 
     needs_odom = False
+    # The robot's (linear, angular) acceleration limits: its speed ramps towards each command
+    # at them (0: it takes a command at once), as the closed loops predict (CommandLog).
+    robot_accel = (0.0, 0.0)
     # How long shutdown_hook waits for the final stop to be acknowledged [s, wall time]; a
     # fleet of motions in one process sets 0 and waits once for all (motion_fleet.py).
     stop_ack_timeout = 0.2
@@ -226,9 +229,10 @@ class MotionNode(Node):
     def stop_robot(self):
         self.publish_command(0.0, 0.0)
 
-    def predicted_progress(self, now_ns):
-        """Return (metres, radians) commanded since the latest odometry was measured."""
-        return self.commands.integral(self.odom.stamp_ns, now_ns)
+    def predict(self, now_ns):
+        """Return the robot's (metres, radians) since the latest odometry, and speeds now."""
+        return self.commands.predict(self.odom.stamp_ns, now_ns, self.odom.twist,
+                                     self.robot_accel)
 
     def progress(self, text):
         """Log text, called each tick: a line a second at most (sim_diffdrive/throttle.py)."""
@@ -256,13 +260,14 @@ class MotionNode(Node):
 
     def _use_odom(self, odom):
         if self.needs_odom and self.state == MotionState.RUNNING and self.odom is not None:
-            fault = odometry_fault(self.odom, odom, self.commands)
+            fault = odometry_fault(self.odom, odom, self.commands,
+                                   velocity=self.odom.twist, accel=self.robot_accel)
             if fault:
                 self._distrust(fault)
                 return
         self.odom = odom
         self.turned.update(odom.yaw)
-        # Nothing before the latest odometry is asked for again (see predicted_progress).
+        # Nothing before the latest odometry is asked for again (see predict).
         self.commands.forget_before(odom.stamp_ns)
         if self.state in (MotionState.RUNNING, MotionState.SETTLING):
             self.run_odoms.append(odom)

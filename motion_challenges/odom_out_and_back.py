@@ -40,6 +40,12 @@ PARAMETERS = out_and_back_specs(50.0) + (
          low=0.0, high=10.0, low_open=True),
     Spec('min_angular_speed', 0.05, 'Slowest turn rate while approaching the goal [rad/s].',
          low=0.0, high=10.0, low_open=True),
+    Spec('robot_linear_accel', 0.0, "The robot's linear acceleration limit (its controller's, "
+         "or unicycle_sim's max_linear_accel) [m/s^2], so that it stops on the goal; 0: it "
+         'takes each command at once.', low=0.0, high=1000.0),
+    Spec('robot_angular_accel', 0.0, "The robot's angular acceleration limit (as "
+         'robot_linear_accel) [rad/s^2]; 0: it takes each command at once.',
+         low=0.0, high=1000.0),
 )
 
 
@@ -51,10 +57,13 @@ class OdomOutAndBack(MotionNode):
     def __init__(self, **kwargs):
         super().__init__('odom_out_and_back', PARAMETERS, **kwargs)
         p = self.params
+        self.robot_accel = (p.robot_linear_accel, p.robot_angular_accel)
         self.legs = OutAndBack(
             p.legs, p.goal_distance, p.goal_angle, p.pause,
-            drive=Approach(p.linear_speed, p.min_linear_speed, p.linear_accel, self.period),
-            turn=Approach(p.angular_speed, p.min_angular_speed, p.angular_accel, self.period))
+            drive=Approach(p.linear_speed, p.min_linear_speed, p.linear_accel, self.period,
+                           robot_accel=p.robot_linear_accel),
+            turn=Approach(p.angular_speed, p.min_angular_speed, p.angular_accel, self.period,
+                          robot_accel=p.robot_angular_accel))
         self.get_logger().info(
             f'{p.legs} leg(s) on odometry: {p.goal_distance:g} m at up to {p.linear_speed:g} '
             f'm/s, turn {math.degrees(p.goal_angle):g} deg at up to {p.angular_speed:g} rad/s')
@@ -64,8 +73,7 @@ class OdomOutAndBack(MotionNode):
         self.legs.start(now_ns, self.odom, self.turned.total)
 
     def control(self, now_ns):
-        command = self.legs.command(now_ns, self.odom, self.turned.total,
-                                    self.predicted_progress(now_ns))
+        command = self.legs.command(now_ns, self.odom, self.turned.total, *self.predict(now_ns))
         if command is not None:
             self.progress(f'Leg {self.legs.leg} of {self.params.legs}: {self.legs.step.value}')
         return command

@@ -219,12 +219,15 @@ def out_and_back_end(start, goal_distance, goal_angle, legs):
     return x, y, yaw
 
 
-def approach_speed(remaining, max_speed, min_speed, accel, period):
+def approach_speed(remaining, max_speed, min_speed, accel, period, robot_accel=0.0,
+                   velocity=0.0):
     """
     Return the speed for a closed-loop motion with remaining distance or angle to go.
 
-    Nav2 Spin's law clamp(sqrt(2 * accel * remaining), min_speed, max_speed), capped at
-    remaining / period so the last control period ends on the goal instead of overshooting.
+    Nav2 Spin's law clamp(sqrt(2 * accel * remaining), min_speed, max_speed), capped so that
+    the last control period ends on the goal instead of overshooting: at remaining / period
+    for a robot that takes each command at once (robot_accel 0), at stopping_speed() for one
+    whose speed ramps at robot_accel, now at velocity (both along the goal's direction).
     """
     if math.isnan(remaining):
         raise ValueError('remaining must be a number, got nan')
@@ -237,7 +240,58 @@ def approach_speed(remaining, max_speed, min_speed, accel, period):
     if remaining <= 0.0:
         return 0.0
     speed = min(max(math.sqrt(2.0 * accel * remaining), min_speed), max_speed)
+    if robot_accel > 0.0:
+        return min(speed, stopping_speed(remaining, velocity, robot_accel, period))
     return min(speed, remaining / period)
+
+
+def ramp(velocity, target, accel, dt):
+    """
+    Return (distance, velocity) after dt of a robot at velocity commanded target [m or rad].
+
+    Its speed ramps towards the command at accel (unicycle_sim's max_*_accel, a controller's
+    acceleration limit) and then holds it; accel 0: it takes the command at once.
+    """
+    if accel <= 0.0:
+        return target * dt, target
+    change = target - velocity
+    reach = abs(change) / accel
+    if reach >= dt:
+        step = math.copysign(accel * dt, change)
+        return (velocity + 0.5 * step) * dt, velocity + step
+    return (velocity + 0.5 * change) * reach + target * (dt - reach), target
+
+
+def stopping_speed(remaining, velocity, accel, period):
+    """
+    Return the command on which a ramping robot comes to rest after remaining [m or rad].
+
+    The command is held for one period and followed by 0; the robot's speed ramps at accel
+    from velocity (see ramp()).  Commanded c <= velocity it goes c * period + ((velocity -
+    c)^2 + c^2) / (2 accel), and c >= velocity (reached within the period) c * (period +
+    velocity / accel) - velocity^2 / (2 accel): the c that makes this remaining.  0 when
+    braking at once already goes further; inf when no command it reaches within the period
+    would take it that far (any speed will do for now).
+    """
+    a, t, v = accel, period, velocity
+    lowest, highest = max(0.0, v - a * t), v + a * t
+    if highest <= 0.0 or remaining >= _stopping_distance(highest, v, a, t):
+        return math.inf
+    if remaining <= _stopping_distance(lowest, v, a, t):
+        return 0.0
+    if v > 0.0 and remaining < _stopping_distance(v, v, a, t):
+        # c^2 + b c + v^2 / 2 - a remaining = 0, b = a t - v: its larger root (>= lowest),
+        # written without subtracting nearly equal numbers.
+        b = a * t - v
+        root = math.sqrt(max(0.0, b * b - 2.0 * v * v + 4.0 * a * remaining))
+        return (2.0 * a * remaining - v * v) / (root + b) if b > 0.0 else 0.5 * (root - b)
+    return (remaining + v * v / (2.0 * a)) / (t + v / a)
+
+
+def _stopping_distance(command, velocity, accel, period):
+    """Return how far a robot goes commanded command for period, then 0 (see ramp())."""
+    distance, speed = ramp(velocity, command, accel, period)
+    return distance + speed * abs(speed) / (2.0 * accel)
 
 
 def final_pose(plan, x=0.0, y=0.0, yaw=0.0, t_end=None):

@@ -54,6 +54,10 @@ PARAMETERS = (
     Spec('min_angular_speed_deg', 2.0,
          'odom mode: slowest turn rate while approaching the goal [deg/s].',
          low=0.0, high=MAX_ANGULAR_SPEED_DEG, low_open=True),
+    Spec('robot_angular_accel_deg', 0.0,
+         "odom mode: the robot's angular acceleration limit (its controller's, or "
+         "unicycle_sim's max_angular_accel) [deg/s^2], so that it stops on the goal; 0: it "
+         'takes each command at once.', low=0.0, high=100000.0),
 )
 
 
@@ -63,6 +67,7 @@ class RotateRobot(TimedMotion):
     def __init__(self, **kwargs):
         super().__init__('rotate_robot', PARAMETERS, **kwargs)
         self.needs_odom = self.params.mode == 'odom'
+        self.robot_accel = (0.0, math.radians(self.params.robot_angular_accel_deg))
         self.request = None
 
     def missing_answers(self):
@@ -77,7 +82,7 @@ class RotateRobot(TimedMotion):
         self.goal = math.radians(request.angle_deg)
         self.spin = SpinController(
             self.goal, request.clockwise, self.speed, math.radians(p.min_angular_speed_deg),
-            math.radians(p.angular_accel_deg), self.period)
+            math.radians(p.angular_accel_deg), self.period, robot_accel=self.robot_accel[1])
         self.sign = self.spin.sign
         self.get_logger().info(
             f'Rotating {request.angle_deg:g} deg '
@@ -99,8 +104,8 @@ class RotateRobot(TimedMotion):
         return command
 
     def _closed_loop(self, now_ns):
-        _, predicted = self.predicted_progress(now_ns)
-        angular = self.spin.command(self.turned.total, predicted)
+        (_, predicted), (_, turn_rate) = self.predict(now_ns)
+        angular = self.spin.command(self.turned.total, predicted, turn_rate)
         turned = self.spin.progress(self.turned.total, predicted)
         return (None if angular is None else (0.0, angular)), turned
 

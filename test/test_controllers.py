@@ -29,6 +29,7 @@ from motion_challenges.controllers import Pose
 from motion_challenges.controllers import SpinController
 from motion_challenges.controllers import Step
 from motion_challenges.controllers import TOLERANCE
+from motion_challenges.plans import ramp
 import pytest
 from sim_diffdrive.angles import normalize_angle
 from sim_diffdrive.angles import YawAccumulator
@@ -113,6 +114,54 @@ def test_spin_with_late_odometry_and_the_command_log_ends_on_the_goal():
         robot_yaw += angular * period_ns / NS
         now_ns += period_ns
     assert robot_yaw == pytest.approx(-math.pi, abs=TOLERANCE)
+
+
+@pytest.mark.parametrize('told', [True, False])
+def test_spin_on_a_robot_that_ramps_stops_on_the_goal_when_told_its_limit(told):
+    """
+    A robot whose turn rate ramps at 2 rad/s^2, odometry one period late (its twist too).
+
+    Told the limit, the loop predicts the ramp and ends on the goal; not told, it overshoots
+    by degrees (docs/robustness.md, "A robot cannot stop at once").
+    """
+    period_ns, limit = 20 * MS, 2.0
+    spin = SpinController(math.radians(135.0), False, math.radians(60.0), math.radians(2.0),
+                          math.radians(180.0), period_ns / NS, robot_accel=limit if told else 0.0)
+    accel = (0.0, limit if told else 0.0)
+    log, robot_yaw, robot_rate, now_ns = CommandLog(), 0.0, 0.0, 0
+    odom, odom_rate = Pose(0.0, 0.0, 0.0, stamp_ns=0), 0.0
+    while True:
+        (_, predicted), (_, rate) = log.predict(odom.stamp_ns, now_ns, (0.0, odom_rate), accel)
+        angular = spin.command(odom.yaw, predicted, rate)
+        if angular is None:
+            break
+        log.add(now_ns, 0.0, angular)
+        odom, odom_rate = Pose(0.0, 0.0, robot_yaw, stamp_ns=now_ns), robot_rate
+        turn, robot_rate = ramp(robot_rate, angular, limit, period_ns / NS)
+        robot_yaw += turn
+        now_ns += period_ns
+        assert now_ns < 60 * NS
+    while robot_rate != 0.0:  # after the last command: the robot comes to rest
+        turn, robot_rate = ramp(robot_rate, 0.0, limit, period_ns / NS)
+        robot_yaw += turn
+    if told:
+        assert robot_yaw == pytest.approx(math.radians(135.0), abs=1e-12)
+    else:
+        assert math.degrees(robot_yaw) > 136.0
+
+
+def test_command_log_predicts_a_ramping_robot():
+    log = CommandLog()
+    log.add(0, 1.0, -1.0)
+    log.add(NS, 0.0, 0.0)
+    # From rest, limits 0.5 m/s^2 and 2 rad/s^2: 1 s of linear ramp (0.25 m, now 0.5 m/s), the
+    # turn rate at -1 after 0.5 s (-0.25 - 0.5 rad); then down again for 0.5 s each.
+    (metres, radians), speeds = log.predict(0, 3 * NS // 2, (0.0, 0.0), (0.5, 2.0))
+    assert (metres, radians) == pytest.approx((0.25 + 0.1875, -0.75 - 0.25), abs=1e-15)
+    assert speeds == pytest.approx((0.25, 0.0), abs=1e-15)
+    # Without limits, as integral(): the commands' integral, the latest command's speeds.
+    assert log.predict(0, 3 * NS // 2) == ((1.0, -1.0), (0.0, 0.0))
+    assert log.predict(0, 3 * NS // 2)[0] == log.integral(0, 3 * NS // 2)
 
 
 def test_spin_progress_is_counted_in_the_goal_direction():
@@ -239,6 +288,14 @@ def test_odometry_back_in_time_is_a_fault():
 def test_a_jump_or_a_turn_the_wrong_way_is_a_fault(x, yaw):
     fault = odometry_fault(Pose(0.0, 0.0, 0.0, 0), Pose(x, 0.0, yaw, 20 * MS), driving_log())
     assert fault.startswith('Odometry jumped')
+
+
+def test_a_robot_still_slowing_down_is_no_jump_when_its_limit_is_known():
+    # At 2 m/s, commanded 0, slowing at 1 m/s^2: 0.0398 m in the next 20 ms.
+    log = driving_log(0.0, 0.0)
+    last, pose = Pose(0.0, 0.0, 0.0, 0), Pose(0.0398, 0.0, 0.0, 20 * MS)
+    assert odometry_fault(last, pose, log, velocity=(2.0, 0.0), accel=(1.0, 0.0)) == ''
+    assert odometry_fault(last, pose, log).startswith('Odometry jumped')
 
 
 def test_command_log_keeps_every_command_since_the_last_odometry():

@@ -128,3 +128,41 @@ def test_circle_with_defaults_reaches_the_diameter_and_comes_back(graph):
     assert far == pytest.approx(2 * 0.5 / 0.5, abs=MM)
     x, y, _ = pose_of(probe.odom)
     assert math.hypot(x, y) < MM
+
+
+# A robot whose speed ramps: the simulator's acceleration limits, told to the closed loops.
+LIMITS = {'max_linear_accel': 0.5, 'max_angular_accel': 2.0}
+# The simulator integrates a ramp in 1 ms sub-steps, each at the speed of its middle: exact
+# for a straight ramp, a few 1e-7 off where a ramp ends inside a sub-step.
+RAMP_TOLERANCE = 1e-6
+
+
+@pytest.mark.parametrize('clockwise', [False, True])
+@pytest.mark.parametrize('rate_hz', [10.0, 50.0])
+def test_rotate_on_odometry_stops_on_the_goal_of_a_robot_that_ramps(graph, clockwise, rate_hz):
+    # 135 deg at 60 deg/s, slowing down at 180 deg/s^2, on a robot that can do 114.6: told the
+    # robot's limit, the loop commands what lets it stop in time (it overshot by 9 deg).
+    graph.sim(**LIMITS)
+    probe = graph.probe()
+    node = graph.node(RotateRobot, mode='odom', rate_hz=rate_hz,
+                      robot_angular_accel_deg=math.degrees(LIMITS['max_angular_accel']))
+    node.start(RotationRequest(60.0, 135.0, clockwise))
+    run_to_end(graph, node, sim_timeout=10.0)
+    assert angle_error(pose_of(probe.odom)[2], math.radians(-135.0 if clockwise else 135.0)) \
+        < RAMP_TOLERANCE
+    assert probe.odom.twist.twist.angular.z == 0.0
+
+
+@pytest.mark.parametrize('rate_hz', [10.0, 50.0])
+def test_odom_out_and_back_stops_on_each_goal_of_a_robot_that_ramps(graph, rate_hz):
+    graph.sim(**LIMITS)
+    probe = graph.probe()
+    node = graph.node(OdomOutAndBack, rate_hz=rate_hz, goal_distance=0.5,
+                      robot_linear_accel=LIMITS['max_linear_accel'],
+                      robot_angular_accel=LIMITS['max_angular_accel'])
+    run_to_end(graph, node, sim_timeout=40.0)
+    x, y, yaw = pose_of(probe.odom)
+    # Two legs of 0.5 m and a half turn each: back where it started (it ended 9.9 mm and 2.2
+    # deg off before the loop knew the limits).
+    assert math.hypot(x, y) < RAMP_TOLERANCE and angle_error(yaw, 0.0) < RAMP_TOLERANCE
+    assert probe.odom.twist.twist.linear.x == 0.0 and probe.odom.twist.twist.angular.z == 0.0
