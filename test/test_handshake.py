@@ -42,7 +42,7 @@ class Owner:
                             self.now)
 
     def step(self):
-        self.ledger.next_step()
+        self.ledger.next_step(self.now)
         self.now += 20 * MS
         self.odom_sent += 1
         self.report()
@@ -221,6 +221,40 @@ def test_a_goodbye_holds_the_clock_until_its_last_message_is_handled(joined):
     assert set(ledger.members) == {'sim'}  # gone once its messages were handled
     owner.step()
     owner.hear_command()  # a non-member's command (a teleop) holds nothing
+    assert ledger.waiting_for(owner.now) == []
+
+
+def test_a_last_stop_heard_before_the_goodbye_that_claims_it_is_not_owed(joined):
+    # odom_out_and_back ends beside a slow participant (a CI run, and 2 in 37 runs of the
+    # lockstep tests with four workers): at its last tick it publishes a stop and answers;
+    # on its way out it publishes another stop and then says goodbye.  The simulator heard the
+    # second stop first, the other participant's answer let it step, and that step forgot the
+    # stop as a non-member's: the goodbye then claimed a message nobody would send again, and
+    # the simulator held the clock for lockstep_timeout before it went on with a warning.
+    ledger, owner = joined
+    owner.step()
+    ledger.receive(motion(owner.now, 1, 2, owner.now), owner.now)  # its last tick: one stop
+    owner.hear_command()
+    owner.hear_command()  # the way-out stop, ahead of the goodbye
+    assert ledger.waiting_for(owner.now) == []
+    owner.step()  # forgets the second stop as surplus
+    goodbye = Answer('m', '/motion', owner.now - 20 * MS, {CMD: 2}, {ODOM: 2}, leaving=True)
+    assert ledger.receive(goodbye, owner.now) == 'left'
+    assert ledger.waiting_for(owner.now) == []  # it was handled: nothing owed
+    assert set(ledger.members) == {'sim'}
+
+
+def test_surplus_forgotten_before_a_members_step_never_covers_what_it_claims(joined):
+    # The same take-back must not let a teleop's command, forgotten at a step, stand for a
+    # member's command of a later step that has not arrived.
+    ledger, owner = joined
+    owner.step()
+    ledger.receive(motion(owner.now, 0, 2, owner.now), owner.now)
+    owner.hear_command()  # a teleop's, at 40 ms
+    owner.step()  # forgotten
+    ledger.receive(motion(owner.now, 1, 3, owner.now), owner.now)  # claims a command at 60 ms
+    assert ledger.waiting_for(owner.now) == [('sim', CMD, 1)]
+    owner.hear_command()
     assert ledger.waiting_for(owner.now) == []
 
 

@@ -169,7 +169,7 @@ class StepLedger:
     The clock owner's view of the members and of what they still owe.
 
     ``receive()`` every answer (the owner's own included), ``waiting_for(now_ns)`` to know
-    whether the step at now_ns is settled, ``next_step()`` when the clock moves on.  The
+    whether the step at now_ns is settled, ``next_step(now_ns)`` when the clock moves on.  The
     owner's own id is never dropped; a participant that said it leaves is waited for only until
     what it sent has been handled, and is gone for good.
     """
@@ -182,12 +182,17 @@ class StepLedger:
         self.dropped = {}
         # Goes up whenever what roster() returns may have changed.
         self.version = 0
+        # Surplus next_step() forgot, per (member that heard it, topic): [step [ns], count]
+        # records, for an answer that claims it later (_take_back).
+        self._forgotten = {}
 
     def receive(self, answer, now_ns, wall_s=0.0):
         """Record an answer heard at wall_s; return 'joined', 'left' or None (no change)."""
         if answer.participant in self.left:
             return None  # a callback that ran after leave(): leaving is final
         member = self.members.get(answer.participant)
+        if member is not None and self._forgotten:
+            self._take_back(member.answer, answer)
         if answer.leaving:
             self.left.add(answer.participant)
             if member is None:
@@ -305,11 +310,52 @@ class StepLedger:
                 self.version += 1
         return reasons
 
-    def next_step(self):
-        """Forget what members heard beyond their due (non-members' messages) before a step."""
+    def next_step(self, now_ns):
+        """
+        Forget what members heard beyond their due (non-members' messages), leaving now_ns.
+
+        Kept aside by step: a member's message sent after it answered its step (a motion's
+        final stop on its way out, a wall-time timer's) may be heard before the answer that
+        claims it, and that answer takes it back (_take_back).
+        """
         for (pid, topic), due in self.owed().items():
             if due < 0:
                 self.members[pid].offset[topic] += due
+                self._forgotten.setdefault((pid, topic), []).append([now_ns, -due])
+        if not self._forgotten:
+            return
+        # A record can be claimed by an answer at or before its step only, and each member's
+        # answers come at or after its latest one.
+        oldest = min((m.answer.step_ns for pid, m in self.members.items()
+                      if pid != self.owner and not m.leaving), default=None)
+        for key, records in list(self._forgotten.items()):
+            records[:] = [record for record in records if record[1] and oldest is not None
+                          and record[0] >= oldest and key[0] in self.members]
+            if not records:
+                del self._forgotten[key]
+
+    def _take_back(self, previous, answer):
+        """
+        Take back forgotten surplus that a member's new answer claims it sent.
+
+        Only surplus forgotten at or after the answer's step: what the answer claims was sent
+        at that time or before, so a non-member's surplus of an earlier step never covers it.
+        """
+        for topic, count in answer.sent.items():
+            claimed = count - previous.sent.get(topic, count)
+            if claimed <= 0:
+                continue
+            for (pid, heard_topic), records in self._forgotten.items():
+                if heard_topic != topic or pid not in self.members:
+                    continue
+                left = claimed
+                for record in records:
+                    if left and record[0] >= answer.step_ns:
+                        taken = min(left, record[1])
+                        record[1] -= taken
+                        left -= taken
+                        offset = self.members[pid].offset
+                        offset[topic] = offset.get(topic, 0) + taken
 
     def forgive(self, participant, topic):
         """

@@ -111,7 +111,7 @@ class LockstepOwner:
 
     def next_step(self, step_ns):
         """Start counting answers for the step to step_ns (the simulator is about to take it)."""
-        self.ledger.next_step()
+        self.ledger.next_step(self.sim.now_ns())
         self._waiting = None
         self._stalled_s = 0.0
         # Not before a step had twice its usual time: a graph of many processes on a busy
