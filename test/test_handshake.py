@@ -225,7 +225,7 @@ def test_a_goodbye_holds_the_clock_until_its_last_message_is_handled(joined):
 
 
 def test_a_last_stop_heard_before_the_goodbye_that_claims_it_is_not_owed(joined):
-    # odom_out_and_back ends beside a slow participant (a CI run, and 2 in 37 runs of the
+    # odom_out_and_back ends beside a slow participant (a CI run, and 3 in 86 runs of the
     # lockstep tests with four workers): at its last tick it publishes a stop and answers;
     # on its way out it publishes another stop and then says goodbye.  The simulator heard the
     # second stop first, the other participant's answer let it step, and that step forgot the

@@ -63,6 +63,10 @@ _STEP_WEIGHT = 0.1
 # the simulator did not listen meanwhile: it did not run (a machine too busy to run it, a
 # debugger) or was busy in a long callback of its own [s, wall]; see _own_stall.
 _STALLED_S = 0.05
+# A message the simulator owes from a sender whose writer its discovery has not matched yet is
+# not lost (on a lossy link one side of a match can come seconds before the other, and the
+# message follows it): it is waited for this many lockstep_timeouts before it is forgiven.
+UNDISCOVERED_TIMEOUTS = 3
 
 
 class LockstepOwner:
@@ -90,6 +94,7 @@ class LockstepOwner:
         self._resend_s = RESEND_S  # the wait before the next re-send of this step
         self._step_s = 0.0  # recent wall time between steps [s; moving average]
         self._warned_wall = 0.0
+        self._discovery_said = None  # the step the wait for discovery was logged at
         self._looked = time.monotonic()  # when try_step last ran [s, wall]
         self._stalled_s = 0.0  # how long the simulator itself did not run during this step
 
@@ -144,7 +149,7 @@ class LockstepOwner:
         self._publish_roster(waiting)
         if waiting:
             held = waited - self._stalled_s  # while the simulator ran, and could hear
-            if held <= sim.params.lockstep_timeout or not self._give_up(waiting):
+            if held <= sim.params.lockstep_timeout or not self._give_up(waiting, held):
                 return
         if waited >= clock.budget_s:
             self._step_s += _STEP_WEIGHT * (waited - self._step_s)
@@ -246,12 +251,15 @@ class LockstepOwner:
         return (f'publishers of {topic} discovered here: {", ".join(names)}' if names
                 else f'no publisher of {topic} discovered here')
 
-    def _give_up(self, waiting):
+    def _give_up(self, waiting, held_s):
         """
         After lockstep_timeout: drop the silent, forgive what the live have not heard.
 
         Return whether the step may go on; a live participant that has not answered the step
-        is waited for still (it answers again at each re-sent /clock), with a warning.
+        is waited for still (it answers again at each re-sent /clock), with a warning, and so
+        is a message to this simulator on a topic none of whose publishers it has discovered
+        yet, up to UNDISCOVERED_TIMEOUTS lockstep_timeouts (held_s: how long the step has
+        been held [s, wall]).
         """
         ledger = self.ledger
         logger = self.sim.get_logger()
@@ -264,7 +272,7 @@ class LockstepOwner:
                 f'Lockstep: nothing heard from {answer.node} for {timeout:g} s (its last answer: '
                 f'{answer.step_ns / _NS:.3f} s); going on without it')
             ledger.drop(pid, now_ns)
-        held = []
+        held, undiscovered = [], []
         for reason in waiting:
             pid, topic, _ = reason
             if pid not in ledger.members:
@@ -272,14 +280,24 @@ class LockstepOwner:
             if topic is None:
                 held.append(reason)
                 continue
+            if (pid == self._owner_id and held_s <= UNDISCOVERED_TIMEOUTS * timeout
+                    and not self.sim.count_publishers(topic)):
+                undiscovered.append(reason)
+                continue
             logger.warning(f'Lockstep: {ledger.describe(reason, now_ns)} within {timeout:g} s; '
                            f'going on without those message(s) ({self._publishers_text(topic)})')
             ledger.forgive(pid, topic)
         self._waiting = None
         self._publish_roster()
+        if undiscovered and self._discovery_said != now_ns:
+            self._discovery_said = now_ns
+            logger.info('Lockstep: holding the clock for ' + '; '.join(
+                ledger.describe(reason, now_ns) for reason in undiscovered)
+                + ': no publisher of it discovered here yet, so it is not lost (waited for up '
+                f'to {UNDISCOVERED_TIMEOUTS * timeout:g} s)')
         if held and wall - self._warned_wall >= timeout:
             self._warned_wall = wall
             logger.warning('Lockstep: holding the clock for ' + '; '.join(
                 ledger.describe(reason, now_ns) for reason in held)
                 + ' (it still answers, so it is waited for)')
-        return not held
+        return not held and not undiscovered
