@@ -92,6 +92,10 @@ CLOSED_LOOP_END = (0.3, 0.0, math.pi)
 OPEN_LOOP = ('rotate_robot', 'angular_speed_deg:=60.0', 'angle_deg:=90.0', 'clockwise:=true')
 
 
+# The simulator's log line when a participant leaves: the simulated time [s] it left at.
+LEFT_AT = re.compile(r'Lockstep: \S+ left at ([0-9.]+) s')
+
+
 def start(executable, *params):
     return harness.start(executable, *harness.ros_params(*params))
 
@@ -148,6 +152,7 @@ def run_motions(graph, sim, probes, motions):
 
     motions: {name: (namespace or None, executable, *params)}; probes: {name: its odometry}.
     """
+    left_before = len(LEFT_AT.findall(sim.output()))
     started = {name: harness.start(executable, *harness.ros_params(
         'use_sim_time:=true', *params, namespace=namespace))
         for name, (namespace, executable, *params) in motions.items()}
@@ -159,10 +164,15 @@ def run_motions(graph, sim, probes, motions):
     assert finished, (f'motions did not finish; the probes are at '
                       f'{[stamp_s(p.odom) for p in probes.values()]} s:\n{outputs}\n'
                       f'{sim.describe()}')
-    # The stop reached the simulator before the motion exited; wait for odometry after it.
-    # From a probe's clock (/clock keeps one message): the latest odometry a probe has taken
-    # may be one queued long before, while the machine was busy.
-    after_s = next(iter(probes.values())).get_clock().now().nanoseconds * 1e-9 + 0.1
+    # The stop reached the simulator before the motion left; wait for odometry after that,
+    # from the simulator's log of when each left.  Not from a probe's clock: on a busy machine
+    # this process handles /clock after odometry queued before it, so its clock can be older
+    # than the end of the run, and a probe took odometry from mid-turn for the end (once in
+    # 15 runs of four lockstep test files at once with four workers).
+    assert graph.spin_until(
+        lambda: len(LEFT_AT.findall(sim.output())) >= left_before + len(motions), 10.0), \
+        f'{outputs}\n{sim.describe()}'
+    after_s = max(float(left_s) for left_s in LEFT_AT.findall(sim.output())[left_before:])
     assert graph.spin_until(lambda: all(stamp_s(p.odom) > after_s for p in probes.values()),
                             10.0)
     return {name: (motion.returncode, outputs[name], probes[name].odom)
