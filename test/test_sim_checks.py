@@ -292,18 +292,18 @@ def test_a_lone_clock_owner_does_not_warn_and_looks_at_its_pace_not_every_step(
 LATE_TIMEOUT_S = 0.4
 
 
-def never_graph(graph, name):
+def never_graph(graph, name, lockstep_timeout=LATE_TIMEOUT_S):
     """
     Return (the simulator's Logs, 'ghost', its MessageCounter): a simulator owning a clock.
 
-    lockstep_timeout 0.4 s: above the longest wait between two re-sent /clock (0.32 s), at
+    lockstep_timeout (0.4 s) above the longest wait between two re-sent /clock (0.32 s), at
     which a participant held up answers again, so that it is not taken for a silent one.
     """
     clock = f'/{name}_{os.getpid()}/clock'
     remap = ['--ros-args', '-r', f'/clock:={clock}']
     sim = UnicycleSim(namespace=f'/{name}', context=graph.context, cli_args=remap,
                       parameter_overrides=overrides(publish_clock=True, real_time_factor=20.0,
-                                                    lockstep_timeout=LATE_TIMEOUT_S))
+                                                    lockstep_timeout=lockstep_timeout))
     logs = Logs()
     sim.get_logger = lambda: logs
     graph.add(sim)
@@ -342,7 +342,8 @@ def test_a_message_from_a_writer_not_discovered_yet_is_waited_for(graph):
     # the simulator matched its writer: the command came late, after it had been forgiven with
     # a warning (test_two_hosts, once in 86 runs with four pytest workers).  Now the clock is
     # held for it, and it lands at its step.
-    logs, ghost, counter = never_graph(graph, 'late')
+    # 1 s: the writer is made and discovered within the two seconds left before the bound.
+    logs, ghost, counter = never_graph(graph, 'late', lockstep_timeout=1.0)
     counter.sent['/late/cmd_vel'] = 1  # sent from a writer the simulator has not discovered
     assert graph.spin_until(lambda: any('no publisher of it discovered here yet' in text
                                         for _, text in logs.lines), 10.0), logs.lines
