@@ -284,7 +284,7 @@ class LockstepOwner:
                     and not self.sim.count_publishers(topic)):
                 undiscovered.append(reason)
                 continue
-            logger.warning(f'Lockstep: {ledger.describe(reason, now_ns)} within {timeout:g} s; '
+            logger.warning(f'Lockstep: {ledger.describe(reason, now_ns)} within {held_s:.1f} s; '
                            f'going on without those message(s) ({self._publishers_text(topic)})')
             ledger.forgive(pid, topic)
         self._waiting = None
