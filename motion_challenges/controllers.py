@@ -28,7 +28,7 @@ import itertools
 import math
 
 from motion_challenges.plans import approach_speed
-from motion_challenges.plans import ramp
+from motion_challenges.plans import speed_ramp
 
 NS = 1_000_000_000
 # A goal is reached once less than this is left to go [m or rad] (about 6e-6 degrees).
@@ -94,16 +94,12 @@ class CommandLog:
         while len(entries) > 1 and entries[1][0] <= t_ns:
             entries.popleft()
 
-    def integral(self, since_ns, now_ns):
-        """Return (metres, radians) commanded over [since_ns, now_ns]."""
-        return self.predict(since_ns, now_ns)[0]
-
     def predict(self, since_ns, now_ns, velocity=(0.0, 0.0), accel=(0.0, 0.0)):
         """
         Return ((metres, radians), (linear, angular)): the robot's way and speed at now_ns.
 
         From since_ns, when it went at velocity, on the commands; accel (linear, angular) is
-        the robot's acceleration limit (plans.ramp), 0 for a robot that takes each command at
+        the robot's acceleration limit (plans.speed_ramp), 0 for a robot that takes each command at
         once: then the way is the commands' integral and the speed the latest command.  Before
         the first command logged the robot is taken to stand still.
         """
@@ -113,8 +109,8 @@ class CommandLog:
         for (start, v, w), (end, *_) in zip(self._entries, ends):
             overlap = (min(end, now_ns) - max(start, since_ns)) / NS
             if overlap > 0.0:
-                metres, speed = ramp(speed, v, linear_accel, overlap)
-                radians, turn_rate = ramp(turn_rate, w, angular_accel, overlap)
+                metres, speed = speed_ramp(speed, v, linear_accel, overlap)
+                radians, turn_rate = speed_ramp(turn_rate, w, angular_accel, overlap)
                 linear += metres
                 angular += radians
         return (linear, angular), (speed, turn_rate)

@@ -245,7 +245,7 @@ def approach_speed(remaining, max_speed, min_speed, accel, period, robot_accel=0
     return min(speed, remaining / period)
 
 
-def ramp(velocity, target, accel, dt):
+def speed_ramp(velocity, target, accel, dt):
     """
     Return (distance, velocity) after dt of a robot at velocity commanded target [m or rad].
 
@@ -267,7 +267,7 @@ def stopping_speed(remaining, velocity, accel, period):
     Return the command on which a ramping robot comes to rest after remaining [m or rad].
 
     The command is held for one period and followed by 0; the robot's speed ramps at accel
-    from velocity (see ramp()).  Commanded c <= velocity it goes c * period + ((velocity -
+    from velocity (see speed_ramp()).  Commanded c <= velocity it goes c * period + ((velocity -
     c)^2 + c^2) / (2 accel), and c >= velocity (reached within the period) c * (period +
     velocity / accel) - velocity^2 / (2 accel): the c that makes this remaining.  0 when
     braking at once already goes further; inf when no command it reaches within the period
@@ -289,8 +289,8 @@ def stopping_speed(remaining, velocity, accel, period):
 
 
 def _stopping_distance(command, velocity, accel, period):
-    """Return how far a robot goes commanded command for period, then 0 (see ramp())."""
-    distance, speed = ramp(velocity, command, accel, period)
+    """Return how far a robot goes commanded command for period, then 0 (see speed_ramp())."""
+    distance, speed = speed_ramp(velocity, command, accel, period)
     return distance + speed * abs(speed) / (2.0 * accel)
 
 

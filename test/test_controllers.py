@@ -29,7 +29,7 @@ from motion_challenges.controllers import Pose
 from motion_challenges.controllers import SpinController
 from motion_challenges.controllers import Step
 from motion_challenges.controllers import TOLERANCE
-from motion_challenges.plans import ramp
+from motion_challenges.plans import speed_ramp
 import pytest
 from sim_diffdrive.angles import normalize_angle
 from sim_diffdrive.angles import YawAccumulator
@@ -104,7 +104,7 @@ def test_spin_with_late_odometry_and_the_command_log_ends_on_the_goal():
     odom = Pose(0.0, 0.0, 0.0, stamp_ns=0)
     now_ns = 0
     while True:
-        _, predicted = log.integral(odom.stamp_ns, now_ns)
+        _, predicted = log.predict(odom.stamp_ns, now_ns)[0]
         angular = spin.command(odom.yaw, predicted)
         if angular is None:
             break
@@ -137,12 +137,12 @@ def test_spin_on_a_robot_that_ramps_stops_on_the_goal_when_told_its_limit(told):
             break
         log.add(now_ns, 0.0, angular)
         odom, odom_rate = Pose(0.0, 0.0, robot_yaw, stamp_ns=now_ns), robot_rate
-        turn, robot_rate = ramp(robot_rate, angular, limit, period_ns / NS)
+        turn, robot_rate = speed_ramp(robot_rate, angular, limit, period_ns / NS)
         robot_yaw += turn
         now_ns += period_ns
         assert now_ns < 60 * NS
     while robot_rate != 0.0:  # after the last command: the robot comes to rest
-        turn, robot_rate = ramp(robot_rate, 0.0, limit, period_ns / NS)
+        turn, robot_rate = speed_ramp(robot_rate, 0.0, limit, period_ns / NS)
         robot_yaw += turn
     if told:
         assert robot_yaw == pytest.approx(math.radians(135.0), abs=1e-12)
@@ -159,9 +159,8 @@ def test_command_log_predicts_a_ramping_robot():
     (metres, radians), speeds = log.predict(0, 3 * NS // 2, (0.0, 0.0), (0.5, 2.0))
     assert (metres, radians) == pytest.approx((0.25 + 0.1875, -0.75 - 0.25), abs=1e-15)
     assert speeds == pytest.approx((0.25, 0.0), abs=1e-15)
-    # Without limits, as integral(): the commands' integral, the latest command's speeds.
+    # Without limits: the commands' integral, and the latest command's speeds.
     assert log.predict(0, 3 * NS // 2) == ((1.0, -1.0), (0.0, 0.0))
-    assert log.predict(0, 3 * NS // 2)[0] == log.integral(0, 3 * NS // 2)
 
 
 def test_spin_progress_is_counted_in_the_goal_direction():
@@ -251,14 +250,14 @@ def test_command_log_integrates_each_command_until_the_next():
     log.add(1 * NS, 2.0, -1.0)
     log.add(3 * NS, 0.0, 0.0)
     # [0.5, 2]: half a second of (1, 0.5), one second of (2, -1).
-    assert log.integral(NS // 2, 2 * NS) == pytest.approx((2.5, -0.75), abs=1e-15)
+    assert log.predict(NS // 2, 2 * NS)[0] == pytest.approx((2.5, -0.75), abs=1e-15)
     # [2.5, 4]: half a second of (2, -1), then the stop.
-    assert log.integral(5 * NS // 2, 4 * NS) == pytest.approx((1.0, -0.5), abs=1e-15)
+    assert log.predict(5 * NS // 2, 4 * NS)[0] == pytest.approx((1.0, -0.5), abs=1e-15)
     # Nothing was commanded before the first entry; the last holds until now.
-    assert log.integral(-NS, NS // 4) == pytest.approx((0.25, 0.125), abs=1e-15)
+    assert log.predict(-NS, NS // 4)[0] == pytest.approx((0.25, 0.125), abs=1e-15)
     log.add(5 * NS, 0.1, 0.0)
-    assert log.integral(5 * NS, 7 * NS) == pytest.approx((0.2, 0.0), abs=1e-15)
-    assert log.integral(2 * NS, 2 * NS) == (0.0, 0.0)
+    assert log.predict(5 * NS, 7 * NS)[0] == pytest.approx((0.2, 0.0), abs=1e-15)
+    assert log.predict(2 * NS, 2 * NS)[0] == (0.0, 0.0)
 
 
 # -- odometry_fault -----------------------------------------------------------------------------
@@ -305,11 +304,11 @@ def test_command_log_keeps_every_command_since_the_last_odometry():
     for k in range(40):
         log.add(k * period_ns, 0.01 * k, -0.02 * k)
     # Between the odometry stamped at 0 and the next at 0.1 s (the jump check) ...
-    metres, radians = log.integral(0, 100 * MS)
+    metres, radians = log.predict(0, 100 * MS)[0]
     assert metres == pytest.approx(sum(0.01 * k * 0.005 for k in range(20)), rel=1e-12)
     assert radians == pytest.approx(sum(-0.02 * k * 0.005 for k in range(20)), rel=1e-12)
     # ... and since the odometry at 0.1 s until now, 0.2 s (the lag compensation).
-    metres, radians = log.integral(100 * MS, 200 * MS)
+    metres, radians = log.predict(100 * MS, 200 * MS)[0]
     assert metres == pytest.approx(sum(0.01 * k * 0.005 for k in range(20, 40)), rel=1e-12)
     assert radians == pytest.approx(sum(-0.02 * k * 0.005 for k in range(20, 40)), rel=1e-12)
 
@@ -322,11 +321,11 @@ def test_command_log_forgets_what_ended_before_the_latest_odometry():
             log.forget_before(k * 5 * MS)
     assert len(log) <= 21
     # What is still asked for is all there: since the latest odometry, at 4.9 s.
-    assert log.integral(4900 * MS, 5000 * MS) == pytest.approx((0.1, 0.05), rel=1e-12)
+    assert log.predict(4900 * MS, 5000 * MS)[0] == pytest.approx((0.1, 0.05), rel=1e-12)
     # The command under way at t stays, even when it began before t.
     log.forget_before(4997 * MS)
     assert len(log) == 1
-    assert log.integral(4997 * MS, 5000 * MS) == pytest.approx((0.003, 0.0015), rel=1e-12)
+    assert log.predict(4997 * MS, 5000 * MS)[0] == pytest.approx((0.003, 0.0015), rel=1e-12)
 
 
 def test_command_log_nobody_asks_keeps_only_its_horizon():
@@ -334,4 +333,4 @@ def test_command_log_nobody_asks_keeps_only_its_horizon():
     for k in range(10000):  # 10 s at 1 kHz, no odometry
         log.add(k * MS, 1.0, 0.0)
     assert len(log) <= 1001
-    assert log.integral(8999 * MS, 9999 * MS) == pytest.approx((1.0, 0.0), rel=1e-12)
+    assert log.predict(8999 * MS, 9999 * MS)[0] == pytest.approx((1.0, 0.0), rel=1e-12)

@@ -22,9 +22,9 @@ from motion_challenges.plans import final_pose
 from motion_challenges.plans import out_and_back_plan
 from motion_challenges.plans import pause
 from motion_challenges.plans import PiecewisePlan
-from motion_challenges.plans import ramp
 from motion_challenges.plans import rotation_plan
 from motion_challenges.plans import Segment
+from motion_challenges.plans import speed_ramp
 from motion_challenges.plans import stopping_speed
 import pytest
 from sim_diffdrive.angles import normalize_angle
@@ -276,19 +276,19 @@ def test_approach_speed_never_overshoots_when_iterated():
 
 def test_ramp_is_the_closed_form_of_a_speed_that_changes_at_accel():
     # From 0.2 towards 1.0 at 2 per s: 0.4 s to get there, so 0.1 s is all ramp ...
-    assert ramp(0.2, 1.0, 2.0, 0.1) == pytest.approx((0.2 * 0.1 + 0.5 * 2.0 * 0.01, 0.4))
+    assert speed_ramp(0.2, 1.0, 2.0, 0.1) == pytest.approx((0.2 * 0.1 + 0.5 * 2.0 * 0.01, 0.4))
     # ... and 1 s is 0.4 s of ramp (0.24), then 0.6 s at 1.0.
-    assert ramp(0.2, 1.0, 2.0, 1.0) == pytest.approx((0.24 + 0.6, 1.0))
+    assert speed_ramp(0.2, 1.0, 2.0, 1.0) == pytest.approx((0.24 + 0.6, 1.0))
     # Slowing down, and through zero: from 1.0 to -1.0 at 4 per s, 0.5 s, ends where it began.
-    assert ramp(1.0, -1.0, 4.0, 0.5) == pytest.approx((0.0, -1.0), abs=1e-15)
+    assert speed_ramp(1.0, -1.0, 4.0, 0.5) == pytest.approx((0.0, -1.0), abs=1e-15)
     # A robot without a limit takes the command at once (bit for bit the command's integral).
-    assert ramp(0.3, 0.7, 0.0, 0.02) == (0.7 * 0.02, 0.7)
+    assert speed_ramp(0.3, 0.7, 0.0, 0.02) == (0.7 * 0.02, 0.7)
 
 
 def stopping_distance(command, velocity, accel, period):
     """How far a ramping robot goes commanded command for period, then 0 until it stands."""
-    distance, speed = ramp(velocity, command, accel, period)
-    more, rest = ramp(speed, 0.0, accel, abs(speed) / accel + 1.0)
+    distance, speed = speed_ramp(velocity, command, accel, period)
+    more, rest = speed_ramp(speed, 0.0, accel, abs(speed) / accel + 1.0)
     assert rest == 0.0
     return distance + more
 
@@ -313,7 +313,7 @@ def test_approach_speed_for_a_ramping_robot_stops_it_on_the_goal_when_iterated()
     remaining, velocity, period = math.pi, 0.0, 0.02
     for _ in range(1000):
         speed = approach_speed(remaining, 1.0, 0.05, 3.0, period, 1.0, velocity)
-        distance, velocity = ramp(velocity, speed, 1.0, period)
+        distance, velocity = speed_ramp(velocity, speed, 1.0, period)
         remaining -= distance
         assert remaining >= -1e-12
         if speed == velocity == 0.0:
