@@ -322,16 +322,14 @@ class StepLedger:
             if due < 0:
                 self.members[pid].offset[topic] += due
                 self._forgotten.setdefault((pid, topic), []).append([now_ns, -due])
-        if not self._forgotten:
-            return
         # A record can be claimed by an answer at or before its step only, and each member's
         # answers come at or after its latest one.
         oldest = min((m.answer.step_ns for pid, m in self.members.items()
                       if pid != self.owner and not m.leaving), default=None)
         for key, records in list(self._forgotten.items()):
             records[:] = [record for record in records if record[1] and oldest is not None
-                          and record[0] >= oldest and key[0] in self.members]
-            if not records:
+                          and record[0] >= oldest]
+            if not records or key[0] not in self.members:
                 del self._forgotten[key]
 
     def _take_back(self, previous, answer):
@@ -341,21 +339,20 @@ class StepLedger:
         Only surplus forgotten at or after the answer's step: what the answer claims was sent
         at that time or before, so a non-member's surplus of an earlier step never covers it.
         """
-        for topic, count in answer.sent.items():
-            claimed = count - previous.sent.get(topic, count)
-            if claimed <= 0:
+        for (pid, topic), records in self._forgotten.items():
+            count = answer.sent.get(topic, 0)
+            left = count - previous.sent.get(topic, count)  # claimed since its last answer
+            if pid not in self.members:
                 continue
-            for (pid, heard_topic), records in self._forgotten.items():
-                if heard_topic != topic or pid not in self.members:
-                    continue
-                left = claimed
-                for record in records:
-                    if left and record[0] >= answer.step_ns:
-                        taken = min(left, record[1])
-                        record[1] -= taken
-                        left -= taken
-                        offset = self.members[pid].offset
-                        offset[topic] = offset.get(topic, 0) + taken
+            offset = self.members[pid].offset
+            for record in records:
+                if left <= 0:
+                    break
+                if record[0] >= answer.step_ns:
+                    taken = min(left, record[1])
+                    record[1] -= taken
+                    left -= taken
+                    offset[topic] = offset.get(topic, 0) + taken
 
     def forgive(self, participant, topic):
         """
