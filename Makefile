@@ -40,10 +40,12 @@ $(STAMP): Makefile setup.py package.xml tools/setup_venv.sh tools/build_tf2_msgs
 # package again (about 0.05 s of CPU each).  pytest keeps its rewritten test modules as bytecode
 # too, unless PYTHONDONTWRITEBYTECODE is set: then each worker rewrites all of them again
 # (about 2 s of CPU each, every run).  Three workers on two cores: the tests wait for the
-# processes they start for a good part of their time (docs/performance.md).
+# processes they start for a good part of their time (docs/performance.md).  The tests go out
+# one at a time, the longest first (test/conftest.py); an xdist_group keeps a module fixture's
+# tests on one worker.
 test: $(STAMP)
 	source $(VENV)/bin/activate && python -m compileall -q motion_challenges sim_diffdrive \
-		&& env -u PYTHONDONTWRITEBYTECODE python -m pytest -q -n 3 --dist worksteal test
+		&& env -u PYTHONDONTWRITEBYTECODE python -m pytest -q -n 3 --dist loadgroup --no-loadscope-reorder test
 
 # make demo VIEW=9090: watch every run live at http://127.0.0.1:9090/ (at 2x real time).
 demo: $(STAMP)

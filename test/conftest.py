@@ -32,6 +32,11 @@ from sim_diffdrive.harness import isolated_domain_id
 from sim_diffdrive.harness import SimGraph
 from sim_diffdrive.testing.graph import DOMAIN_BLOCK
 
+# For the processes the tests start: numpy's OpenBLAS starts a thread per core that spins
+# about 0.1 s after numpy's import (0.13 CPU s for `import numpy`, against 0.07 with one
+# thread); the package's arrays are a few dozen numbers, which one thread handles.
+os.environ.setdefault('OPENBLAS_NUM_THREADS', '1')
+
 DOMAIN_ID = isolated_domain_id()
 if os.environ.get('PYTEST_XDIST_WORKER', 'gw0') != 'gw0':
     # pytest -n: each worker on a domain of its own, the next ones of the block that the run
@@ -92,13 +97,37 @@ def procs(tmp_path):
         harness.kill_all(started)
 
 
-# The longest modules start first, so that with pytest -n the short ones fill in around them
-# instead of one long test running alone at the end.
-_FIRST = ('test_lockstep_processes', 'test_view', 'test_interrupts', 'test_bench', 'test_faults')
+# The longest tests, in seconds of a busy suite, go first; make test hands them out one at a
+# time (pytest -n 3 --dist loadgroup), each to the worker that frees up next.
+# Those that mostly use the CPU alternate with those that mostly wait (a lossy link, a wall-time
+# motion, a timeout), so that one's wait is another's work, and the short tests fill in at the
+# end instead of one long test running alone.  A test not named here keeps its file's order.
+_LONGEST = (
+    'test_bench.py::test_quick_run_writes_every_row',  # 16 s, 8 CPU s
+    'test_two_hosts.py::test_a_lossy_link_only_slows_the_run_down',  # 8 and 4 s, waiting
+    'test_view.py::test_the_browser_shows_the_robot_driving_up_the_screen',  # 14 s, Chromium
+    'test_lockstep_faults.py::test_a_cmd_vel_listener_is_not_the_robot',  # 6 s, waiting
+    'test_flake8.py::test_flake8',  # 6 CPU s
+    'test_lockstep_processes.py::test_a_simulator_that_was_not_running_gives_nobody_up',
+    'test_lockstep_processes.py::test_motions_end_exact_and_bit_identical_on_a_busy_machine',
+    'test_faults.py::test_make_stress_reports_and_judges_a_short_flood',
+    'test_lockstep_processes.py::test_a_killed_participant_is_left_behind_and_a_late_one_is',
+    'test_foxglove.py::test_unicycle_sim_serves_odometry_at_its_rate',
+    'test_interrupts.py::test_simulator_restarted_mid_motion_is_noticed',
+    'test_two_hosts.py::test_motion_and_simulator_on_two_hosts_end_as_exactly_as_on_one',
+    'test_lockstep_processes.py::test_a_clock_held_for_a_slow_participant_is_not_a_dead',
+    'test_faults.py::test_a_cmd_vel_flood_is_cheap_the_last_command_wins',
+    'test_interrupts.py::test_interrupt_mid_segment_and_during_a_pause',
+    'test_motion_fleet.py::test_three_robots_from_the_shipped_params_file_each_end_exact',
+    'test_motion_processes.py::test_odom_motion_without_odometry_gives_up_and_never_moves',
+    'test_lockstep_faults.py::test_foreign_stale_and_zero_stamps_never_stall_or_drop_anyone',
+    'test_lockstep_faults.py::test_a_timed_motion_whose_simulator_dies_stops_and_fails',
+)
 
 
 def pytest_collection_modifyitems(items):
     def rank(item):
-        name = item.module.__name__.rpartition('.')[2]
-        return _FIRST.index(name) if name in _FIRST else len(_FIRST)
+        name = item.nodeid.rpartition('/')[2]
+        return next((k for k, test in enumerate(_LONGEST) if name.startswith(test)),
+                    len(_LONGEST))
     items.sort(key=rank)
