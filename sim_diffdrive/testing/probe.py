@@ -26,6 +26,7 @@ import time
 from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 from rclpy.serialization import deserialize_message
 from sim_diffdrive.angles import yaw_from_quaternion
 from sim_diffdrive.cdr import header_stamp_ns
@@ -106,7 +107,14 @@ class Probe(Node):
 
     def __init__(self, name='probe', odom_topic='odom', cmd_topic='cmd_vel', listen_only=False,
                  record_commands=False, **kwargs):
-        super().__init__(name, **kwargs)
+        # An instrument with no parameters of its own to serve: without the parameter and type
+        # description services (seven of them, each a reader and a writer that every process on
+        # the graph discovers), a probe costs 1.2 ms of CPU to make and destroy instead of 4.8.
+        kwargs.setdefault('start_parameter_services', False)
+        overrides = list(kwargs.pop('parameter_overrides', None) or ())
+        if not any(p.name == 'start_type_description_service' for p in overrides):
+            overrides.append(Parameter('start_type_description_service', value=False))
+        super().__init__(name, parameter_overrides=overrides, **kwargs)
         self.odoms = Received(Odometry)
         self.odom_walls = []  # the monotonic wall time each odometry message arrived
         self.commands = []  # with record_commands: (monotonic, time.time(), Twist) heard
