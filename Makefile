@@ -41,8 +41,8 @@ $(STAMP): Makefile setup.py package.xml tools/setup_venv.sh tools/build_tf2_msgs
 # too, unless PYTHONDONTWRITEBYTECODE is set: then each worker rewrites all of them again
 # (about 2 s of CPU each, every run).  Three workers on two cores: the tests wait for the
 # processes they start for a good part of their time (docs/performance.md).  The tests go out
-# one at a time, the longest first (test/conftest.py); an xdist_group keeps a module fixture's
-# tests on one worker.
+# one at a time, the longest first, and a module fixture's tests to one worker together
+# (test/conftest.py).
 test: $(STAMP)
 	source $(VENV)/bin/activate && python -m compileall -q motion_challenges sim_diffdrive \
 		&& env -u PYTHONDONTWRITEBYTECODE python -m pytest -q -n 3 --dist loadgroup --no-loadscope-reorder test

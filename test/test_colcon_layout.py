@@ -38,8 +38,6 @@ NOT_SOURCE = ('.git', '.venv', 'build', 'install', 'log', '__pycache__', '*.egg-
 # The interface contract (DESIGN.md): these executables must exist whatever else is added.
 CONTRACT_EXECUTABLES = {'unicycle_sim', 'rotate_robot', 'circle_back_and_forth',
                         'timed_out_and_back', 'odom_out_and_back'}
-# One colcon build for the module: make test hands its tests to one worker together.
-pytestmark = pytest.mark.xdist_group('colcon_layout')
 
 
 def colcon():

@@ -38,8 +38,6 @@ ONE_STEP_AT_60 = math.radians(60.0 / RATE_HZ) * 1.01
 # One simulator process for the module, a robot (namespace) per test: the tests never share a
 # robot, so none sees another's motion, and three process start-ups are saved.
 ROBOTS = ('typed', 'bad_answers', 'input_ended', 'parameters')
-# make test hands tests out one at a time (conftest.py): these go to one worker together.
-pytestmark = pytest.mark.xdist_group('motion_processes')
 
 
 @pytest.fixture(scope='module')
