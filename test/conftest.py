@@ -128,7 +128,7 @@ _LONGEST = (
 
 # Modules whose tests share a module fixture (a colcon build, a simulator process): their tests go
 # to one worker together.  (xdist's own xdist_group mark does nothing with pytest 9: it renames
-# the items through an attribute that pytest 9 no longer reads.)
+# the items through an attribute that pytest 9 no longer reads; pytest-xdist issue 1386.)
 _ONE_WORKER = ('test_colcon_layout.py', 'test_motion_processes.py')
 
 
