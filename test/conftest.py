@@ -144,6 +144,12 @@ def pytest_xdist_make_scheduler(config, log):
             if module.rpartition('/')[2] in _ONE_WORKER:
                 return module
             return super()._split_scope(nodeid)
+
+        def _reschedule(self, node):
+            # One test queued behind the running one (xdist's default: two), so that a long
+            # test is not held behind another on one worker while a second worker is free.
+            if self._pending_of(self.assigned_work[node]) < 2:
+                super()._reschedule(node)
     return Scheduling(config, log)
 
 
