@@ -98,8 +98,8 @@ def procs(tmp_path):
 
 
 # The longest tests, in seconds of a busy suite, go first; make test hands them out one at a
-# time (pytest -n 3 --dist loadgroup --no-loadscope-reorder and the scheduler below), each to
-# the worker that frees up next.
+# time (pytest -n 3 --dist load --maxschedchunk 1 and the scheduler below), each to the worker
+# that frees up next.
 # Those that mostly use the CPU alternate with those that mostly wait (a lossy link, a wall-time
 # motion, a timeout), so that one's wait is another's work, and the short tests fill in at the
 # end instead of one long test running alone.  A test not named here keeps its file's order.
@@ -120,36 +120,38 @@ _LONGEST = (
     'test_faults.py::test_a_cmd_vel_flood_is_cheap_the_last_command_wins',
     'test_interrupts.py::test_interrupt_mid_segment_and_during_a_pause',
     'test_motion_fleet.py::test_three_robots_from_the_shipped_params_file_each_end_exact',
-    'test_motion_processes.py::test_odom_motion_without_odometry_gives_up_and_never_moves',
     'test_lockstep_faults.py::test_foreign_stale_and_zero_stamps_never_stall_or_drop_anyone',
     'test_lockstep_faults.py::test_a_timed_motion_whose_simulator_dies_stops_and_fails',
 )
 
 
 # Modules whose tests share a module fixture (a colcon build, a simulator process): their tests go
-# to one worker together.  (xdist's own xdist_group mark does nothing with pytest 9: it renames
-# the items through an attribute that pytest 9 no longer reads; pytest-xdist issue 1386.)
+# to one worker together.
 _ONE_WORKER = ('test_colcon_layout.py', 'test_motion_processes.py')
 
 
 def pytest_xdist_make_scheduler(config, log):
-    """With --dist loadgroup: one test at a time, in _LONGEST's order; _ONE_WORKER's together."""
-    if config.getvalue('dist') != 'loadgroup':
+    """
+    With --dist load: xdist's own, plus _ONE_WORKER's tests sent to one worker together.
+
+    With --maxschedchunk 1 it keeps one test queued behind the running one.  (xdist's
+    xdist_group mark cannot group them: with pytest 9 it does nothing, pytest-xdist issue 1386,
+    and its scheduler waits forever after a worker crashes.)
+    """
+    if config.getvalue('dist') != 'load':
         return None
-    from xdist.scheduler import LoadGroupScheduling
+    from xdist.scheduler import LoadScheduling
 
-    class Scheduling(LoadGroupScheduling):
-        def _split_scope(self, nodeid):
-            module = nodeid.partition('::')[0]
-            if module.rpartition('/')[2] in _ONE_WORKER:
-                return module
-            return super()._split_scope(nodeid)
-
-        def _reschedule(self, node):
-            # One test queued behind the running one (xdist's default: two), so that a long
-            # test is not held behind another on one worker while a second worker is free.
-            if self._pending_of(self.assigned_work[node]) < 2:
-                super()._reschedule(node)
+    class Scheduling(LoadScheduling):
+        def _send_tests(self, node, num):
+            if self.pending:
+                module = self.collection[self.pending[0]].partition('::')[0]
+                if module.rpartition('/')[2] in _ONE_WORKER:
+                    together = [k for k in self.pending
+                                if self.collection[k].partition('::')[0] == module]
+                    self.pending[:] = together + [k for k in self.pending if k not in together]
+                    num = max(num, len(together))
+            super()._send_tests(node, num)
     return Scheduling(config, log)
 
 
