@@ -144,14 +144,15 @@ def pytest_xdist_make_scheduler(config, log):
 
     class Scheduling(LoadScheduling):
         def _send_tests(self, node, num):
-            if self.pending:
-                module = self.collection[self.pending[0]].partition('::')[0]
-                if module.rpartition('/')[2] in _ONE_WORKER:
-                    together = [k for k in self.pending
-                                if self.collection[k].partition('::')[0] == module]
-                    self.pending[:] = together + [k for k in self.pending if k not in together]
-                    num = max(num, len(together))
-            super()._send_tests(node, num)
+            batch, rest = self.pending[:num], self.pending[num:]
+            grouped = {module for module in map(self._module, batch)
+                       if module.rpartition('/')[2] in _ONE_WORKER}
+            together = [k for k in rest if self._module(k) in grouped]
+            self.pending[:] = batch + together + [k for k in rest if k not in together]
+            super()._send_tests(node, num + len(together))
+
+        def _module(self, index):
+            return self.collection[index].partition('::')[0]
     return Scheduling(config, log)
 
 
