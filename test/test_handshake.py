@@ -244,6 +244,22 @@ def test_a_last_stop_heard_before_the_goodbye_that_claims_it_is_not_owed(joined)
     assert set(ledger.members) == {'sim'}
 
 
+def test_a_stop_from_a_publisher_made_after_the_last_answer_is_taken_back_too():
+    # The same, from a member whose cmd_vel publisher did not exist at its last answer (its
+    # answers list a publisher's topic from when it is made): all it claims was sent since.
+    ledger = StepLedger('sim')
+    owner = Owner(ledger)
+    owner.step()
+    ledger.receive(Answer('m', '/motion', owner.now, {}, {ODOM: 1}), owner.now)
+    owner.step()
+    ledger.receive(Answer('m', '/motion', owner.now, {}, {ODOM: 2}), owner.now)
+    owner.hear_command()  # its first command, sent after that answer, heard before the next
+    owner.step()  # forgets it as surplus
+    goodbye = Answer('m', '/motion', owner.now - 20 * MS, {CMD: 1}, {ODOM: 2}, leaving=True)
+    assert ledger.receive(goodbye, owner.now) == 'left'
+    assert ledger.waiting_for(owner.now) == []  # it was handled: nothing owed
+
+
 def test_surplus_forgotten_before_a_members_step_never_covers_what_it_claims(joined):
     # The same take-back must not let a teleop's command, forgotten at a step, stand for a
     # member's command of a later step that has not arrived.

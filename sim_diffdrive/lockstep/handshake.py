@@ -340,10 +340,10 @@ class StepLedger:
         at that time or before, so a non-member's surplus of an earlier step never covers it.
         """
         for (pid, topic), records in self._forgotten.items():
-            count = answer.sent.get(topic, 0)
-            left = count - previous.sent.get(topic, count)  # claimed since its last answer
             if pid not in self.members:
                 continue
+            # Claimed since its last answer (which lists a topic once its publisher exists).
+            left = answer.sent.get(topic, 0) - previous.sent.get(topic, 0)
             offset = self.members[pid].offset
             for record in records:
                 if left <= 0:
