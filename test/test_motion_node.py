@@ -21,11 +21,15 @@ from motion_challenges.motion_node import MotionState
 from motion_challenges.prompts import RotationRequest
 from motion_challenges.rotate_robot import RotateRobot
 from nav_msgs.msg import Odometry
+from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.serialization import serialize_message
 from rclpy.time import Time
 from sim_diffdrive.harness import angle_error
+from sim_diffdrive.lockstep.handshake import answer_topic
+from sim_diffdrive.lockstep.participant import ANSWER_QOS
 from sim_diffdrive.runtime import EXIT_FAILED
+from std_msgs.msg import String
 
 TYPING_S = 1.2  # how long the user takes to answer the questions [s, wall time]
 START_TIMEOUT = 0.5
@@ -60,6 +64,29 @@ def test_without_a_robot_it_gives_up_start_timeout_after_the_answers(graph):
     assert node.state is MotionState.FINISHED
     # The watchdog looks every 0.5 s.
     assert START_TIMEOUT <= waited <= START_TIMEOUT + 1.0
+
+
+def test_a_simulator_in_lockstep_that_never_takes_it_in_is_named_not_taken_for_absent(
+        graph, capfd):
+    # On a link losing packets both ways, the simulator can learn of a motion seconds after
+    # the motion learned of it (Fast DDS repairs lost discovery with a heartbeat a second).
+    # Here a node listens for lockstep answers and never sends a roster: the motion must give
+    # up saying that the simulator is there, not ask whether it runs.
+    graph.sim()
+    owner = graph.add(Node('silent_owner', context=graph.context))
+    owner.create_subscription(String, answer_topic('/clock'), lambda _: None, ANSWER_QOS)
+    node = rotate_robot(graph, start_timeout=START_TIMEOUT)
+    node.start(RotationRequest(90.0, 45.0, False))
+    graph.step()
+    assert graph.spin_until(lambda: node.done, timeout=5.0)
+    assert node.exit_code == EXIT_FAILED
+    assert node.start_ns is None  # never started
+    err = capfd.readouterr().err
+    assert 'waiting for the simulator to take this node into its lockstep; it runs but has ' \
+        'not heard this node yet (a slow or lossy link: raise start_timeout). Nothing moved.' \
+        in err, err
+    graph.step_for(0.1)
+    assert graph.pose() == (0.0, 0.0, 0.0)
 
 
 def test_on_wall_time_against_a_simulator_that_owns_time_it_says_so_and_never_moves(
