@@ -55,6 +55,7 @@ class Lockstep:
         # Per topic, added to (to arrive - handled): what was on its way when the counters
         # were last taken, less the counts then, less the surplus forgotten since.
         self._offset = {}
+        self._plan, self._plan_sizes = [], None  # for _owes(); None: to be laid out
         self._discovered = False
 
     def add(self, node):
@@ -130,13 +131,13 @@ class Lockstep:
 
     def settled(self, now_ns):
         """Return whether every message sent was handled and every node's timers have run."""
-        if self.pending():
+        if self._owes():
             return False
         for node in self.nodes:
             if node is self.clock_owner:
                 continue
-            if (node.get_parameter('use_sim_time').value
-                    and node.get_clock().now().nanoseconds != now_ns):
+            clock = node.get_clock()  # on sim time (use_sim_time) while ROS time is active
+            if clock.ros_time_is_active and clock.now().nanoseconds != now_ns:
                 return False
             for timer in node.timers:
                 if not timer.is_canceled():
@@ -193,6 +194,37 @@ class Lockstep:
         """Return how many messages sent in the graph have not been handled yet."""
         return sum(owed for owed in self._owed().values() if owed > 0)
 
+    def _owes(self):
+        """
+        Return whether pending() is not 0, sooner: the graph asks after every callback.
+
+        The sums of _owed per topic, over the counters' live dicts, laid out once for as long
+        as no counter gains a topic (a node wrapping a subscription made later).
+        """
+        sizes = [len(counter.heard) for counter in self._counters]
+        if sizes != self._plan_sizes:
+            self._plan, self._plan_sizes = self._sums(), sizes
+        offset = self._offset
+        for topic, senders, hearers in self._plan:
+            owed = offset.get(topic, 0)
+            for sent, fanout in senders:
+                owed += fanout * sent[topic]
+            for heard in hearers:
+                owed -= heard[topic]
+            if owed > 0:
+                return True
+        return False
+
+    def _sums(self):
+        """Return, per topic: the counters' sent dicts with their fanout, their heard dicts."""
+        plan = {}
+        for counter, fanout in zip(self._counters, self._fanout):
+            for topic, count in fanout:
+                plan.setdefault(topic, ([], []))[0].append((counter.sent, count))
+            for topic in counter.heard:
+                plan.setdefault(topic, ([], []))[1].append(counter.heard)
+        return [(topic, senders, hearers) for topic, (senders, hearers) in plan.items()]
+
     def _owed(self, offset=None):
         """Per topic: messages to arrive at in-graph subscriptions less those handled."""
         owed = dict(self._offset if offset is None else offset)
@@ -227,6 +259,7 @@ class Lockstep:
             counter.wrap_new()
         self._fanout = [[(topic, subscribers[topic]) for topic in counter.sent
                          if subscribers.get(topic)] for counter in self._counters]
+        self._plan_sizes = None
         counted = self._owed({})
         self._offset = {topic: carried.get(topic, 0) - counted.get(topic, 0)
                         for topic in set(carried) | set(counted)}
