@@ -45,7 +45,7 @@ $(STAMP): Makefile setup.py package.xml tools/setup_venv.sh tools/build_tf2_msgs
 # (test/conftest.py).
 test: $(STAMP)
 	source $(VENV)/bin/activate && python -m compileall -q motion_challenges sim_diffdrive \
-		&& env -u PYTHONDONTWRITEBYTECODE python -m pytest -q -n 3 --dist load --maxschedchunk 1 test
+		&& env -u PYTHONDONTWRITEBYTECODE python -m pytest -q -n 4 --dist load --maxschedchunk 1 test
 
 # make demo VIEW=9090: watch every run live at http://127.0.0.1:9090/ (at 2x real time).
 demo: $(STAMP)

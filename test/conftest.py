@@ -125,6 +125,38 @@ _LONGEST = (
 )
 
 
+# Tests that mostly wait (a lossy link, a wall-time motion or timeout, a process to end), using
+# little CPU of their own.  With four workers or more (make test runs four on two cores), the
+# last worker takes these first and the others the rest first: no more CPU-bound tests run at
+# once than with three workers, and the waits fill the time the cores were idle.  A worker that
+# has run out of its own kind takes the other kind.
+_WAITING = (
+    'test_two_hosts.py::test_a_lossy_link_only_slows_the_run_down',
+    'test_lockstep_faults.py::test_a_cmd_vel_listener_is_not_the_robot',
+    'test_faults.py::test_make_stress_reports_and_judges_a_short_flood',
+    'test_faults.py::test_a_cmd_vel_flood_is_cheap_the_last_command_wins',
+    'test_foxglove.py::test_unicycle_sim_serves_odometry_at_its_rate',
+    'test_lockstep_faults.py::test_a_timed_motion_whose_simulator_dies_stops_and_fails',
+    'test_lockstep_faults.py::test_without_a_robot_the_motion_gives_up_and_never_says_done',
+    'test_motion_node.py::test_without_a_robot_it_gives_up_start_timeout_after_the_answers',
+    'test_motion_node.py::test_start_timeout_does_not_count_the_time_spent_typing',
+    'test_faults.py::test_two_controllers_at_once_are_warned_about_once',
+    'test_participant.py::test_odometry_a_step_ahead_is_answered_with_the_clock_of_its_step',
+    'test_participant.py::test_a_joining_node_answers_the_newest_of_the_odometry_it_catches',
+    'test_participant.py::test_a_process_answers_once_a_step_for_all_its_nodes',
+    'test_sim_checks.py::test_a_message_that_never_comes_is_forgiven_naming_the_publishers',
+    'test_sim_checks.py::test_a_message_from_a_writer_not_discovered_yet_is_waited_for',
+    'test_live_parameters.py::test_a_simulator_process_applies_a_live_set_and_refuses_a_read',
+    'test_live_parameters.py::test_real_time_factor_set_live_paces_the_clock',
+    'test_recorder.py::test_the_file_is_complete_after_the_process_is_stopped',
+    'test_recorder.py::test_a_file_that_cannot_be_written_is_said_once_and_the_run_goes_on',
+    'test_harness.py::test_several_processes_are_signalled_before_any_is_waited_for',
+    'test_harness.py::test_a_process_that_does_not_exit_is_killed_with_its_stack_in_its_log',
+    'test_tf.py::test_the_executable_publishes_tf_that_another_process_hears',
+    'test_foxglove.py::',
+)
+
+
 # Modules whose tests share a module fixture (a colcon build, a simulator process): their tests go
 # to one worker together.
 _ONE_WORKER = ('test_colcon_layout.py', 'test_motion_processes.py')
@@ -132,7 +164,10 @@ _ONE_WORKER = ('test_colcon_layout.py', 'test_motion_processes.py')
 
 def pytest_xdist_make_scheduler(config, log):
     """
-    With --dist load: xdist's own, plus _ONE_WORKER's tests sent to one worker together.
+    With --dist load, return xdist's own scheduler with this suite's two rules.
+
+    _WAITING's tests go to the last of four workers or more, and _ONE_WORKER's tests to one
+    worker together.
 
     With --maxschedchunk 1 it keeps one test queued behind the running one.  (xdist's
     xdist_group mark cannot group them: with pytest 9 it does nothing, pytest-xdist issue 1386,
@@ -143,7 +178,17 @@ def pytest_xdist_make_scheduler(config, log):
     from xdist.scheduler import LoadScheduling
 
     class Scheduling(LoadScheduling):
+        waiting = None  # the collection's indices of _WAITING's tests
+
         def _send_tests(self, node, num):
+            if len(self.node2pending) >= 4:
+                if self.waiting is None:
+                    self.waiting = {k for k, nodeid in enumerate(self.collection)
+                                    if _named(nodeid, _WAITING) is not None}
+                waiter = max(self.node2pending, key=lambda n: int(n.gateway.id[2:]))
+                own = [k for k in self.pending if (k in self.waiting) == (node is waiter)]
+                taken = set(own)
+                self.pending[:] = own + [k for k in self.pending if k not in taken]
             batch, rest = self.pending[:num], self.pending[num:]
             grouped = {module for module in map(self._module, batch)
                        if module.rpartition('/')[2] in _ONE_WORKER}
@@ -156,9 +201,15 @@ def pytest_xdist_make_scheduler(config, log):
     return Scheduling(config, log)
 
 
+def _named(nodeid, names):
+    """Return the index of the first of names that nodeid's file::test starts with, or None."""
+    path, _, test = nodeid.partition('::')
+    name = path.rpartition('/')[2] + '::' + test
+    return next((k for k, test in enumerate(names) if name.startswith(test)), None)
+
+
 def pytest_collection_modifyitems(items):
     def rank(item):
-        name = item.nodeid.rpartition('/')[2]
-        return next((k for k, test in enumerate(_LONGEST) if name.startswith(test)),
-                    len(_LONGEST))
+        k = _named(item.nodeid, _LONGEST)
+        return len(_LONGEST) if k is None else k
     items.sort(key=rank)
