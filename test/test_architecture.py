@@ -77,3 +77,12 @@ def test_no_module_is_longer_than_500_lines():
             if lines > MAX_LINES:
                 too_long[str(path.relative_to(ROOT))] = lines
     assert not too_long, f'modules over {MAX_LINES} lines: {too_long}'
+
+
+def test_the_suites_scheduling_lists_name_tests_that_exist():
+    # test/conftest.py places these tests by name: a renamed test would drop out silently.
+    import conftest
+    for name in conftest._LONGEST + conftest._WAITING:
+        module, _, test = name.partition('::')
+        source = (ROOT / 'test' / module).read_text()
+        assert f'def {test}' in source, f'{name}: no such test in test/{module}'
