@@ -198,7 +198,7 @@ def _named(nodeid, names):
     """Return the index of the first of names that nodeid's file::test starts with, or None."""
     path, _, test = nodeid.partition('::')
     name = path.rpartition('/')[2] + '::' + test
-    return next((k for k, test in enumerate(names) if name.startswith(test)), None)
+    return next((k for k, prefix in enumerate(names) if name.startswith(prefix)), None)
 
 
 def pytest_collection_modifyitems(items):

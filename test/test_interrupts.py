@@ -153,9 +153,17 @@ def test_killed_controller_is_stopped_by_the_simulator_timeout(graph, procs):
     # (rclpy 7.1.6's EventsExecutor cannot hand a callback the sender's source timestamp.)
     pattern = (rf'No cmd_vel for {timeout_s:g} s: stopping the robot '
                r'\(the last came at (\d+\.\d{9}) s\)')
-    assert graph.spin_until(lambda: re.search(pattern, timed.output()), 10.0), timed.describe()
-    took_s = float(re.search(pattern, timed.output()).group(1))
+    # The stop after the kill is the last: a controller starved of the CPU for longer than the
+    # timeout before it (a busy loop and a suite beside it) is rightly stopped too, and drives on
+    # once its commands come again.
     heard_s = watcher.commands[-1][1]
+
+    def last_stop():
+        stops = re.findall(pattern, timed.output())
+        return float(stops[-1]) if stops else None
+    assert graph.spin_until(lambda: (last_stop() or 0.0) > heard_s - 0.4, 10.0), \
+        timed.describe()
+    took_s = last_stop()
     assert abs(took_s - heard_s) < 0.4, (took_s, heard_s)
     settled_s = took_s + timeout_s + 0.2
     assert graph.spin_until(lambda: stamp_s(watcher.odom) > settled_s
