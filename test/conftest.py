@@ -21,6 +21,8 @@ machine (and the subprocesses they start) never hear each other.
 """
 
 import os
+import sys
+import time
 
 import pytest
 import rclpy
@@ -192,6 +194,32 @@ def pytest_xdist_make_scheduler(config, log):
         def _module(self, index):
             return self.collection[index].partition('::')[0]
     return Scheduling(config, log)
+
+
+def pytest_testnodedown(node, error):
+    """
+    Say how a pytest worker that died ended, read from /proc while it waits to be reaped.
+
+    A worker killed outright leaves no fault dump (docs/robustness.md, "Known gaps"); its exit
+    status (proc(5): stat's exit_code, as waitpid() gives it) tells a signal from an exit.
+    """
+    if not error:
+        return
+    deadline = time.monotonic() + 1.0
+    while time.monotonic() < deadline:
+        for pid in filter(str.isdigit, os.listdir('/proc')):
+            try:
+                with open(f'/proc/{pid}/stat') as stat:
+                    fields = stat.read().rpartition(')')[2].split()
+            except OSError:
+                continue
+            if fields[0] == 'Z' and int(fields[1]) == os.getpid():
+                status = int(fields[49])
+                how = f'signal {status & 0x7f}' if status & 0x7f else f'exit code {status >> 8}'
+                print(f'[{node.gateway.id}] the worker, pid {pid}, ended by {how}',
+                      file=sys.stderr)
+                return
+        time.sleep(0.05)
 
 
 def _named(nodeid, names):
