@@ -176,8 +176,11 @@ def test_one_odometry_message_per_step_equal_to_the_published_one(graph, client_
     client.subscribe('/odom')
     first_message(graph, client)
     probe.send(0.5, 0.4)
+    start_ns = graph.now_ns
     graph.step(100)
-    received = client.messages()
+    # The steps from here on.  A busy machine can deliver the message of a step taken while
+    # waiting for the first one after that wait gave up (101 came once, beside a busy loop).
+    received = [message for message in client.messages() if message[1] > start_ns]
     assert len(received) == 100
     assert {topic for topic, _, _ in received} == {'/odom'}
     stamps = [log_time for _, log_time, _ in received]
