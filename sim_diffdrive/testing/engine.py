@@ -55,7 +55,7 @@ class Lockstep:
         # Per topic, added to (to arrive - handled): what was on its way when the counters
         # were last taken, less the counts then, less the surplus forgotten since.
         self._offset = {}
-        self._plan, self._plan_sizes = [], None  # for _owes(); None: to be laid out
+        self._plan, self._plan_sizes = [], None  # for _laid_out(); None: to be laid out
         self._discovered = False
 
     def add(self, node):
@@ -195,45 +195,39 @@ class Lockstep:
         return sum(owed for owed in self._owed().values() if owed > 0)
 
     def _owes(self):
-        """
-        Return whether pending() is not 0, sooner: the graph asks after every callback.
-
-        The sums of _owed per topic, over the counters' live dicts, laid out once for as long
-        as no counter gains a topic (a node wrapping a subscription made later).
-        """
-        sizes = [len(counter.heard) for counter in self._counters]
-        if sizes != self._plan_sizes:
-            self._plan, self._plan_sizes = self._sums(), sizes
+        """Return whether pending() is not 0, from the first topic owed (asked per callback)."""
         offset = self._offset
-        for topic, senders, hearers in self._plan:
-            owed = offset.get(topic, 0)
-            for sent, fanout in senders:
-                owed += fanout * sent[topic]
-            for heard in hearers:
-                owed -= heard[topic]
-            if owed > 0:
+        for topic_sums in self._laid_out():
+            if _owed_on(offset, *topic_sums) > 0:
                 return True
         return False
 
-    def _sums(self):
-        """Return, per topic: the counters' sent dicts with their fanout, their heard dicts."""
-        plan = {}
-        for counter, fanout in zip(self._counters, self._fanout):
-            for topic, count in fanout:
-                plan.setdefault(topic, ([], []))[0].append((counter.sent, count))
-            for topic in counter.heard:
-                plan.setdefault(topic, ([], []))[1].append(counter.heard)
-        return [(topic, senders, hearers) for topic, (senders, hearers) in plan.items()]
-
     def _owed(self, offset=None):
         """Per topic: messages to arrive at in-graph subscriptions less those handled."""
-        owed = dict(self._offset if offset is None else offset)
-        for counter, fanout in zip(self._counters, self._fanout):
-            for topic, count in fanout:
-                owed[topic] = owed.get(topic, 0) + count * counter.sent[topic]
-            for topic, heard in counter.heard.items():
-                owed[topic] = owed.get(topic, 0) - heard
+        offset = self._offset if offset is None else offset
+        owed = dict(offset)
+        for topic_sums in self._laid_out():
+            owed[topic_sums[0]] = _owed_on(offset, *topic_sums)
         return owed
+
+    def _laid_out(self):
+        """
+        Return, per topic: the counters' sent dicts with their fanout, and their heard dicts.
+
+        Laid out once for as long as no counter handles a new topic (a node wrapping a
+        subscription made later); the dicts are the counters' own, so the counts are live.
+        """
+        sizes = [len(counter.heard) for counter in self._counters]
+        if sizes != self._plan_sizes:
+            plan = {}
+            for counter, fanout in zip(self._counters, self._fanout):
+                for topic, count in fanout:
+                    plan.setdefault(topic, ([], []))[0].append((counter.sent, count))
+                for topic in counter.heard:
+                    plan.setdefault(topic, ([], []))[1].append(counter.heard)
+            self._plan = [(topic, senders, hearers) for topic, (senders, hearers) in plan.items()]
+            self._plan_sizes = sizes
+        return self._plan
 
     def _forget_surplus(self):
         """Forget messages handled beyond what the graph sent (they owe nothing)."""
@@ -263,6 +257,16 @@ class Lockstep:
         counted = self._owed({})
         self._offset = {topic: carried.get(topic, 0) - counted.get(topic, 0)
                         for topic in set(carried) | set(counted)}
+
+
+def _owed_on(offset, topic, senders, hearers):
+    """Return what topic owes: offset, plus what its senders sent times its fanout, less heard."""
+    owed = offset.get(topic, 0)
+    for sent, fanout in senders:
+        owed += fanout * sent[topic]
+    for heard in hearers:
+        owed -= heard[topic]
+    return owed
 
 
 def _clock_topic(node):
