@@ -39,10 +39,10 @@ $(STAMP): Makefile setup.py package.xml tools/setup_venv.sh tools/build_tf2_msgs
 # PYTHONDONTWRITEBYTECODE is set, and each of the processes the tests start would compile the
 # package again (about 0.05 s of CPU each).  pytest keeps its rewritten test modules as bytecode
 # too, unless PYTHONDONTWRITEBYTECODE is set: then each worker rewrites all of them again
-# (about 2 s of CPU each, every run).  Three workers on two cores: the tests wait for the
+# (about 2 s of CPU each, every run).  Four workers on two cores: the tests wait for the
 # processes they start for a good part of their time (docs/performance.md).  The tests go out
-# one at a time, the longest first, and a module fixture's tests to one worker together
-# (test/conftest.py).
+# one at a time, the longest first, those that mostly wait to the last worker, and a module
+# fixture's tests to one worker together (test/conftest.py).
 test: $(STAMP)
 	source $(VENV)/bin/activate && python -m compileall -q motion_challenges sim_diffdrive \
 		&& env -u PYTHONDONTWRITEBYTECODE python -m pytest -q -n 4 --dist load --maxschedchunk 1 test

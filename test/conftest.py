@@ -100,7 +100,7 @@ def procs(tmp_path):
 
 
 # The longest tests, in seconds of a busy suite, go first; make test hands them out one at a
-# time (pytest -n 3 --dist load --maxschedchunk 1 and the scheduler below), each to the worker
+# time (pytest -n 4 --dist load --maxschedchunk 1 and the scheduler below), each to the worker
 # that frees up next.
 # Those that mostly use the CPU alternate with those that mostly wait (a lossy link, a wall-time
 # motion, a timeout), so that one's wait is another's work, and the short tests fill in at the
