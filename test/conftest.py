@@ -152,9 +152,10 @@ _WAITING = (
 )
 
 
-# Modules whose tests share a module fixture (a colcon build, a simulator process): their tests go
-# to one worker together.
-_ONE_WORKER = ('test_colcon_layout.py', 'test_motion_processes.py')
+# Modules whose tests go to one worker together: those that share a module fixture (a colcon
+# build, a simulator process), and the plots, so that one worker, not four, imports matplotlib
+# (0.35 CPU s each).
+_ONE_WORKER = ('test_colcon_layout.py', 'test_motion_processes.py', 'test_path_and_plot.py')
 
 
 def pytest_xdist_make_scheduler(config, log):
