@@ -76,7 +76,7 @@ def wait_all(graph, procs, timeout):
     return [p for p in procs if p.poll() is None]
 
 
-def check_stopped(watcher, motion, problems, label):
+def check_stopped(watcher, motion, problems, label, sim=None):
     """
     Check that after the motion exited the robot came to rest and stayed there.
 
@@ -90,7 +90,9 @@ def check_stopped(watcher, motion, problems, label):
     resting = at_rest_since(later)
     if len(resting) < 10:
         problems.append(f'{label}: no odometry at rest after the exit'
-                        + (f', twist {twist(later[-1])}' if later else ''))
+                        + (f', twist {twist(later[-1])}' if later else ', none at all')
+                        + f' ({len(watcher.odoms)} heard in all)'
+                        + (f'\n{motion.describe()}\n{sim.describe()}' if sim else ''))
     elif len({pose_of(o) for o in resting}) != 1:
         problems.append(f'{label}: the robot moved after it came to rest, twist '
                         f'{twist(later[-1])}')
@@ -459,5 +461,5 @@ def test_simulator_restarted_mid_motion_is_noticed(graph, procs):
             settle = time.monotonic()
             graph.spin_until(lambda: len(at_rest_since(case.watcher.after(
                 proc.exited_at))) >= 10 or time.monotonic() > settle + 5.0, 6.0, poll=0.01)
-            check_stopped(case.watcher, proc, problems, case.name)
+            check_stopped(case.watcher, proc, problems, case.name, case.new_sim)
     assert finished and not problems, '\n\n'.join(problems)

@@ -369,6 +369,11 @@ class StepLedger:
             member.offset[topic] = (self._sent_since_join().get(topic, 0)
                                     - member.answer.heard.get(topic, 0))
 
+    def senders(self, topic):
+        """Return the members that sent on topic since they joined (leaving ones included)."""
+        return [member for member in self.members.values()
+                if member.answer.sent.get(topic, 0) > member.base_sent.get(topic, 0)]
+
     def describe(self, reason, now_ns):
         """Return a reason from waiting_for() in words, naming the node."""
         pid, topic, due = reason

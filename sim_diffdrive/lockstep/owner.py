@@ -65,7 +65,8 @@ _STEP_WEIGHT = 0.1
 _STALLED_S = 0.05
 # A message the simulator owes from a sender whose writer its discovery has not matched yet is
 # not lost (on a lossy link one side of a match can come seconds before the other, and the
-# message follows it): it is waited for this many lockstep_timeouts before it is forgiven.
+# message follows it): it is waited for this many lockstep_timeouts before it is forgiven,
+# unless every node that sent on its topic has left and is gone from the graph (_gone).
 UNDISCOVERED_TIMEOUTS = 3
 
 
@@ -251,6 +252,22 @@ class LockstepOwner:
         return (f'publishers of {topic} discovered here: {", ".join(names)}' if names
                 else f'no publisher of {topic} discovered here')
 
+    def _gone(self, topic):
+        """
+        Return the nodes that sent on topic, if each has left and is gone from the graph.
+
+        Their writers can no longer be discovered, so what they sent that this simulator never
+        had cannot come (a motion that stopped its robot as this simulator started, before it
+        matched the motion's writer, then said goodbye and exited).  [] while any sender stays.
+        """
+        senders = self.ledger.senders(topic)
+        if not senders or not all(member.leaving for member in senders):
+            return []
+        present = {f'{namespace.rstrip("/")}/{name}'
+                   for name, namespace in self.sim.get_node_names_and_namespaces()}
+        names = sorted(member.answer.node for member in senders)
+        return [] if present.intersection(names) else names
+
     def _give_up(self, waiting, held_s):
         """
         After lockstep_timeout: drop the silent, forgive what the live have not heard.
@@ -280,12 +297,14 @@ class LockstepOwner:
             if topic is None:
                 held.append(reason)
                 continue
-            if (pid == self._owner_id and held_s <= UNDISCOVERED_TIMEOUTS * timeout
-                    and not self.sim.count_publishers(topic)):
+            unseen = pid == self._owner_id and not self.sim.count_publishers(topic)
+            gone = self._gone(topic) if unseen else []
+            if unseen and not gone and held_s <= UNDISCOVERED_TIMEOUTS * timeout:
                 undiscovered.append(reason)
                 continue
             logger.warning(f'Lockstep: {ledger.describe(reason, now_ns)} within {held_s:.1f} s; '
-                           f'going on without those message(s) ({self._publishers_text(topic)})')
+                           f'going on without those message(s) ({self._publishers_text(topic)}'
+                           + (f'; {", ".join(gone)} left and is gone' if gone else '') + ')')
             ledger.forgive(pid, topic)
         self._waiting = None
         self._publish_roster()
