@@ -37,7 +37,7 @@ ROW_KEYS = (
     'rotate_timed', 'rotate_odom', 'out_and_back_closure', 'circle_closure',
     'integration_error', 'rtf_in_process', 'rtf_processes', 'latency', 'cpu_idle',
     'cpu_commands', 'scaling_one_process', 'scaling_processes', 'fleet_cpu', 'fleet_real_time',
-    'fleet_rtf', 'fleet_per_robot', 'fleet_motions', 'fleet_idle_large',
+    'fleet_rtf', 'fleet_per_robot', 'fleet_motions', 'fleet_idle_large', 'suite',
 )
 
 # The original's speed: 60 deg/s converted with 3.14/180 [rad/s].
@@ -192,5 +192,12 @@ def test_quick_run_writes_every_row(tmp_path):
     assert large['from_row_13'] is True
     assert large['window'] == fleet['windows'][str(sizes.fleet_idle_robots)]['idle']
     assert 0.0 < large['cores'] < 2.0 and large['steps_per_s'] > 0.0
-    # The table is printed too.
+    # Row 19 times a pytest run as it times make test, here on one module of pure tests.
+    suite = rows['suite']
+    assert suite['command'].endswith('-m pytest -q -p no:cacheprovider test/test_kinematics.py')
+    assert suite['returncode'] == 0 and suite['counts']['passed'] > 0, suite
+    assert 0.0 < suite['wall_s'] and 0.0 < suite['cpu_s'], suite
+    # The table is printed too, with the commit it measured.
     assert 'this project' in result.stdout and 'reference' in result.stdout
+    assert report['machine']['commit'] != '?'
+    assert f'commit {report["machine"]["commit"]}' in result.stdout

@@ -26,6 +26,7 @@ import json
 import os
 from pathlib import Path
 import signal
+import subprocess
 import sys
 import textwrap
 import time
@@ -33,6 +34,7 @@ import time
 from benchmark import fleet  # noqa: F401  (each module registers its rows, in table order)
 from benchmark import one_process  # noqa: F401
 from benchmark import processes  # noqa: F401
+from benchmark import suite  # noqa: F401
 from benchmark.core import ROWS
 from benchmark.core import Run
 import rclpy
@@ -59,6 +61,18 @@ def print_table(rows):
     print('\nNotes:\n' + '\n'.join(f'{i}. {r["note"]}' for i, r in enumerate(rows.values(), 1)))
 
 
+def commit():
+    """Return the checked-out commit, '+' if tracked files changed since; '?' outside git."""
+    def git(*args):
+        return subprocess.run(('git', *args), cwd=Path(__file__).parent, capture_output=True,
+                              text=True, check=True).stdout.strip()
+    try:
+        head = git('rev-parse', '--short', 'HEAD')
+        return head + ('+' if git('status', '--porcelain', '--untracked-files=no') else '')
+    except (OSError, subprocess.CalledProcessError):
+        return '?'
+
+
 def main(argv=None):
     groups = list(dict.fromkeys(group for group, _ in ROWS.values()))
     parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
@@ -81,9 +95,10 @@ def main(argv=None):
     with open('/proc/cpuinfo') as cpuinfo:
         cpu = next((line.split(':')[1].strip() for line in cpuinfo if 'model name' in line), '?')
     info = {'nproc': os.cpu_count(), 'cpu': cpu, 'loadavg': list(os.getloadavg()),
-            'python': sys.version.split()[0]}
-    print(f'{info["nproc"]} x {cpu}, load {info["loadavg"][0]:.2f}; ROS_DOMAIN_ID={domain_id}, '
-          f'localhost only{", --quick" if options.quick else ""}', flush=True)
+            'python': sys.version.split()[0], 'commit': commit()}
+    print(f'{info["nproc"]} x {cpu}, load {info["loadavg"][0]:.2f}, commit {info["commit"]}; '
+          f'ROS_DOMAIN_ID={domain_id}, localhost only{", --quick" if options.quick else ""}',
+          flush=True)
     run, rows, start = Run(options.quick, options.rtf), {}, time.monotonic()
     try:
         for key, (group, measure) in ROWS.items():
@@ -97,7 +112,8 @@ def main(argv=None):
         run.stop_all()
     wall_s = time.monotonic() - start
     print(f'\nMachine: {info["nproc"]} cores, {cpu}; Python {info["python"]}; load average at '
-          f'start {info["loadavg"][0]:.2f}; total {wall_s:.0f} s wall\n')
+          f'start {info["loadavg"][0]:.2f}; commit {info["commit"]}; total {wall_s:.0f} s '
+          'wall\n')
     print_table(rows)
     path = Path(options.json)
     path.parent.mkdir(parents=True, exist_ok=True)

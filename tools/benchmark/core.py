@@ -34,6 +34,7 @@ TARGET_IDLE_CPU_PERCENT = 1.0
 TARGET_FLEET_CORES = 1.0
 TARGET_PER_ROBOT_US = (5.0, 20.0)  # idle, commanded
 TARGET_FLEET_MOTIONS_RTF = 5.0
+TARGET_SUITE_S = 60.0  # make test, 2 cores, a warm venv
 SIZES = {  # each: (make bench, --quick)
     'starts': (20, 2), 'laps': (100, 100), 'latency_samples': (200, 5),
     'circle_cycles': (10, 2), 'circle_half_period': (15.0, 3.0),
