@@ -60,6 +60,8 @@ def run_suite(command, timeout):
 @row('suite')
 def suite(run):
     quick = run.sizes.quick
+    if not quick:  # a warm venv, as the target says: set it up first if make would, untimed
+        subprocess.run(('make', '-s', 'venv'), cwd=ROOT, check=True, capture_output=True)
     measured = run_suite(QUICK_COMMAND if quick else ('make', '-s', 'test'),
                          120.0 if quick else 900.0)
     if measured['returncode'] != 0:
