@@ -20,6 +20,7 @@ test run picks its own ROS domain and keeps discovery on localhost, so parallel 
 machine (and the subprocesses they start) never hear each other.
 """
 
+import faulthandler
 import os
 import sys
 import time
@@ -55,6 +56,24 @@ os.environ.setdefault('RCUTILS_LOGGING_BUFFERED_STREAM', '0')
 # numpy's OpenBLAS starts a thread per core on import, spinning: 0.1 CPU s of the 0.5 each
 # started process spends importing, for matrix work that nothing here does.
 os.environ.setdefault('OPENBLAS_NUM_THREADS', '1')
+
+
+def pytest_configure(config):
+    """
+    Keep the fault dump of a crash on this process's own stderr (a pytest worker's too).
+
+    rclpy's EventsExecutor() calls faulthandler.enable(), which points the dump at sys.stderr:
+    within a test, pytest's capture, which a crashed worker takes with it.  Four worker deaths
+    (docs/robustness.md, "Known gaps") left no dump for that reason; a test that segfaults
+    after making an EventsExecutor shows it.  Here stderr is still the process's own (pytest's
+    faulthandler plugin relies on the same), so a call without a file goes there.
+    """
+    stderr = os.dup(sys.__stderr__.fileno())
+    enable = faulthandler.enable
+
+    def enable_on_stderr(file=None, all_threads=True):
+        enable(file=stderr if file is None else file, all_threads=all_threads)
+    faulthandler.enable = enable_on_stderr
 
 
 @pytest.fixture
