@@ -45,6 +45,7 @@ from sim_diffdrive.parameters import declare
 from sim_diffdrive.parameters import ParameterError
 from sim_diffdrive.parameters import Spec
 from sim_diffdrive.participant import take_part
+from sim_diffdrive.runtime import destroyed_if_refused
 from sim_diffdrive.runtime import run
 
 _MOTIONS = {
@@ -185,8 +186,10 @@ class MotionFleet(Node):
 
     def __init__(self, **kwargs):
         super().__init__('motion_fleet', **kwargs)
-        self.params = declare(self, PARAMETERS)
-        self.plan = fleet_plan(self.params.robots, self.params.motions, self.get_namespace())
+        with destroyed_if_refused(self):
+            self.params = declare(self, PARAMETERS)
+            self.plan = fleet_plan(self.params.robots, self.params.motions,
+                                   self.get_namespace())
         self.motions = []
         # On sim time the fleet is one participant of the lockstep: one answer per step for
         # all its motions, not one each (each costs the simulator a message and a look).

@@ -46,6 +46,7 @@ from sim_diffdrive.angles import YawAccumulator
 from sim_diffdrive.lockstep.participant import take_part
 from sim_diffdrive.node_names import node_names
 from sim_diffdrive.parameters import declare
+from sim_diffdrive.runtime import destroyed_if_refused
 from sim_diffdrive.runtime import EXIT_FAILED
 from sim_diffdrive.runtime import EXIT_OK
 from sim_diffdrive.throttle import Throttle
@@ -104,7 +105,8 @@ class MotionNode(Node):
 
     def __init__(self, node_name, specs, participant=None, **kwargs):
         super().__init__(node_name, **kwargs)
-        self.params = declare(self, tuple(specs) + COMMON_PARAMETERS)
+        with destroyed_if_refused(self):
+            self.params = declare(self, tuple(specs) + COMMON_PARAMETERS)
         self.period = 1.0 / self.params.rate_hz
         self.cmd_pub = self.create_publisher(
             TwistStamped if self.params.stamped else Twist, 'cmd_vel', 10)
@@ -142,8 +144,7 @@ class MotionNode(Node):
         # reach us only once its time has passed the last we had: watch the clock itself.
         self._time_jump = self.get_clock().create_jump_callback(
             JumpThreshold(min_forward=None, min_backward=Duration(nanoseconds=-1),
-                          on_clock_change=False),
-            post_callback=self._on_time_jump)
+                          on_clock_change=False), post_callback=self._on_time_jump)
         # On sim time: take part in the simulator's lockstep, and act at each tick on the
         # odometry measured before it, so that the decision never depends on whether this
         # step's odometry or clock crossed the graph first (runs are bit-identical).
@@ -195,8 +196,7 @@ class MotionNode(Node):
             # Fast DDS sends within publish(); its acknowledgement waits for a heartbeat that
             # can be seconds away, so only a short wait covers a resend on a lossy link.
             if self.stop_ack_timeout > 0.0:
-                stopped = self.cmd_pub.wait_for_all_acked(
-                    Duration(seconds=self.stop_ack_timeout))
+                stopped = self.cmd_pub.wait_for_all_acked(Duration(seconds=self.stop_ack_timeout))
                 unheard = ' and '.join(what for what, heard in (
                     ('the final stop', stopped), ('the lockstep goodbye', said_goodbye))
                     if not heard)

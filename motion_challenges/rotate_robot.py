@@ -35,6 +35,7 @@ from motion_challenges.prompts import stream_writer
 from motion_challenges.specs import rate_spec
 from motion_challenges.timed_motion import TimedMotion
 from sim_diffdrive.parameters import Spec
+from sim_diffdrive.runtime import destroyed_if_refused
 from sim_diffdrive.runtime import run
 from sim_diffdrive.runtime import UsageError
 
@@ -128,14 +129,15 @@ def ask_missing(node, read_line=None, write=None):
         # Strict decoding drops the whole buffered chunk at one undecodable byte, and with it
         # the answers piped after it: keep such bytes as escapes, so only their line is refused.
         sys.stdin.reconfigure(errors='surrogateescape')
-    try:
-        request = ask_rotation(
-            read_line or sys.stdin.readline, write or stream_writer(sys.stdout),
-            angular_speed_deg=p.angular_speed_deg, angle_deg=p.angle_deg,
-            clockwise=p.clockwise)
-    except InputEnded as error:
-        raise UsageError(f'{error}; nothing moved') from None
-    node.start(request)
+    with destroyed_if_refused(node):  # input that ends, or Ctrl-C while asking
+        try:
+            request = ask_rotation(
+                read_line or sys.stdin.readline, write or stream_writer(sys.stdout),
+                angular_speed_deg=p.angular_speed_deg, angle_deg=p.angle_deg,
+                clockwise=p.clockwise)
+        except InputEnded as error:
+            raise UsageError(f'{error}; nothing moved') from None
+        node.start(request)
     return node
 
 

@@ -31,6 +31,7 @@ when every node that has a ``done`` attribute is done, and on exit every node's 
 after another's failed, before any node is destroyed; the executor is shut down in between.
 """
 
+from contextlib import contextmanager
 import faulthandler
 import signal
 
@@ -71,6 +72,22 @@ class _Interrupts:
 
 class UsageError(Exception):
     """The user's input cannot start a run (the message says why)."""
+
+
+@contextmanager
+def destroyed_if_refused(node):
+    """
+    Destroy node if the block raises (a bad parameter or input refused it), then re-raise.
+
+    A node that make_node() built but never returned is not run()'s to destroy.  Left to the
+    garbage collector, it goes wherever that gets to it: in a process forked later (flake8's
+    workers in a test run crashed on the DDS handles they inherited), or as the process exits.
+    """
+    try:
+        yield node
+    except BaseException:
+        node.destroy_node()
+        raise
 
 
 def spin_until_done(executor, nodes, interrupts):

@@ -19,8 +19,10 @@ import time
 
 from motion_challenges.motion_node import MotionState
 from motion_challenges.prompts import RotationRequest
+from motion_challenges.rotate_robot import ask_missing
 from motion_challenges.rotate_robot import RotateRobot
 from nav_msgs.msg import Odometry
+import pytest
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.serialization import serialize_message
@@ -29,6 +31,7 @@ from sim_diffdrive.harness import angle_error
 from sim_diffdrive.lockstep.handshake import answer_topic
 from sim_diffdrive.lockstep.participant import ANSWER_QOS
 from sim_diffdrive.runtime import EXIT_FAILED
+from sim_diffdrive.runtime import UsageError
 from std_msgs.msg import String
 
 TYPING_S = 1.2  # how long the user takes to answer the questions [s, wall time]
@@ -143,3 +146,19 @@ def test_odometry_is_used_in_stamp_order_after_the_clock_jumps_ahead(graph):
     node._take_early_odoms(node.now_ns())  # what the next tick does first
     assert not node.done, node.exit_code
     assert node.odom.stamp_ns == 1_500_000_000
+
+
+def refused_nodes(graph):
+    observer = graph.probe('observer', use_sim_time=False, listen_only=True)
+    return [name for name, namespace in observer.get_node_names_and_namespaces()
+            if namespace == '/refused']
+
+
+def test_input_that_ends_before_the_answers_leaves_no_node_behind(graph):
+    # rotate_robot's node is built before its questions: refused, it is destroyed at once
+    # (runtime.destroyed_if_refused), not whenever the refusal's traceback lets go of it.
+    node = RotateRobot(namespace='/refused', context=graph.context)
+    assert refused_nodes(graph) == ['rotate_robot']
+    with pytest.raises(UsageError, match='nothing moved'):
+        ask_missing(node, read_line=lambda: '', write=lambda text: None)
+    assert refused_nodes(graph) == []

@@ -36,6 +36,7 @@ from sim_diffdrive.cdr import OdometryLayout
 from sim_diffdrive.parameters import declare
 from sim_diffdrive.parameters import ParameterError
 from sim_diffdrive.parameters import Spec
+from sim_diffdrive.runtime import destroyed_if_refused
 from sim_diffdrive.runtime import run
 from sim_diffdrive.sim.clock import make_clock
 from sim_diffdrive.sim.fleet import Fleet
@@ -136,14 +137,8 @@ class UnicycleSim(Node):
         ``self.clock.step()`` (SimGraph does, once the graph has settled).
         """
         super().__init__('unicycle_sim', **kwargs)
-        try:
+        with destroyed_if_refused(self):
             self._build(stepped)
-        except BaseException:
-            # Refused (a bad parameter): destroyed here, not left to the garbage collector,
-            # which may get to it anywhere, even in a process forked later (flake8's workers
-            # in a test run crashed on the DDS handles they inherited).
-            self.destroy_node()
-            raise
 
     def _build(self, stepped):
         self.params = declare(self, PARAMETERS, on_change=self._on_parameter)
