@@ -334,6 +334,10 @@ def test_a_fleet_names_the_robots_whose_final_stops_nobody_acknowledged(graph, p
         f'robots:=[{",".join(ROBOTS)}]', 'motions:=[circle_back_and_forth]', sim_time=True))
     assert graph.spin_until(lambda: all(is_moving(w.odom) for w in watchers), 20.0), \
         fleet.describe()
+    # The graph's nodes go first, as nothing is left to watch: destroying a node after a peer
+    # on shared memory was SIGKILLed crashed the pytest worker, in Fast DDS, once in about 30
+    # suite runs (docs/robustness.md, "Known gaps").
+    graph.close()
     sim.send(signal.SIGKILL)
     sim.wait(10.0)
     output = stop(fleet, signal.SIGINT)
