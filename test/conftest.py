@@ -220,8 +220,8 @@ def pytest_testnodedown(node, error):
     """
     Say how a pytest worker that died ended, read from /proc while it waits to be reaped.
 
-    A worker killed outright leaves no fault dump (docs/robustness.md, "Known gaps"); its exit
-    status (proc(5): stat's exit_code, as waitpid() gives it) tells a signal from an exit.
+    xdist says only "Not properly terminated"; the exit status (proc(5): stat's exit_code, as
+    waitpid() gives it) tells a signal from an exit (docs/robustness.md, "Known gaps").
     """
     if not error:
         return

@@ -80,9 +80,12 @@ def test_no_module_is_longer_than_500_lines():
 
 
 def test_the_suites_scheduling_lists_name_tests_that_exist():
-    # test/conftest.py places these tests by name: a renamed test would drop out silently.
+    # test/conftest.py places these tests and modules by name: a renamed one would drop out
+    # silently.
     import conftest
     for name in conftest._LONGEST + conftest._WAITING:
         module, _, test = name.partition('::')
         source = (ROOT / 'test' / module).read_text()
         assert f'def {test}' in source, f'{name}: no such test in test/{module}'
+    for module in conftest._ONE_WORKER:
+        assert (ROOT / 'test' / module).is_file(), f'{module}: no such module in test/'
