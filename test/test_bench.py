@@ -159,6 +159,9 @@ def test_quick_run_writes_every_row(tmp_path):
     assert rows['cpu_idle']['idle_percent'] >= 0.0
     assert rows['cpu_idle']['rclpy_floor_percent'] > 0.0
     assert rows['cpu_idle']['publish_floor_percent'] > 0.0
+    assert rows['cpu_idle']['sleep_floor_percent'] > 0.0
+    # The idle simulator's main thread sleeps between steps and wakes for each.
+    assert rows['cpu_idle']['wakes_per_step']['main'] > 0.5
     assert tuple(rows['scaling_one_process']['rtf']) == tuple(map(str, sizes.robots))
     assert tuple(rows['scaling_processes']['rtf']) == tuple(map(str, sizes.robots_processes))
     # Many robots in one simulator (rows 13-18): every count measured, sane, motions exact.

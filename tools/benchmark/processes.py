@@ -20,6 +20,7 @@ Rows 7-12: the executables as a user starts them, over DDS, watched from this pr
 
 import itertools
 import math
+import os
 import random
 import re
 import sys
@@ -93,6 +94,18 @@ try:
         executor.add_node(node)
         while rclpy.ok():  # as the executables spin (runtime.spin_until_done)
             executor.spin_once(timeout_sec=0.1)
+except KeyboardInterrupt:
+    pass
+"""
+# Row 9's second reference: a Python process that only sleeps and wakes at 50 Hz, no ROS: what
+# each wake of a thread costs on this machine, whatever it then does.
+SLEEPER = """
+import time
+due = time.monotonic()
+try:
+    while True:
+        due += 0.02
+        time.sleep(max(0.0, due - time.monotonic()))
 except KeyboardInterrupt:
     pass
 """
@@ -186,8 +199,31 @@ def rtf_processes(run):
                           if r['exit']]})
 
 
+def wakes(pid):
+    """
+    Return how often each thread of pid has gone to sleep and woken since it started.
+
+    Voluntary context switches (/proc), summed by thread name: the main thread is 'main', the
+    threads that kept the process's name (rclpy's) 'unnamed'.
+    """
+    counts = {}
+    with open(f'/proc/{pid}/comm') as comm:
+        process_name = comm.read().strip()
+    for task in os.listdir(f'/proc/{pid}/task'):
+        try:
+            with open(f'/proc/{pid}/task/{task}/status') as status:
+                fields = dict(line.split(':', 1) for line in status)
+        except (FileNotFoundError, ProcessLookupError):
+            continue  # a thread that just ended
+        # Fast DDS numbers its threads (dds.shm.7000): one name for each kind.
+        name = re.sub(r'(\.\d+)+$', '', fields['Name'].strip())
+        name = 'main' if task == str(pid) else 'unnamed' if name == process_name else name
+        counts[name] = counts.get(name, 0) + int(fields['voluntary_ctxt_switches'])
+    return counts
+
+
 def sim_process(run):
-    """Measure a unicycle_sim at 50 Hz on wall time: CPU idle, under commands; latency."""
+    """Measure a unicycle_sim at 50 Hz on wall time: CPU and wakes idle, commanded; latency."""
     with harness.SimGraph(executor_class=EventsExecutor) as graph:
         probe, sim = graph.probe('bench_observer', use_sim_time=False), run.start(
             'unicycle_sim', rate_hz=50.0)
@@ -201,7 +237,13 @@ def sim_process(run):
                                     and probe.cmd_pub.get_subscription_count() > 0, 15.0):
                 raise RuntimeError(f'no odometry from unicycle_sim:\n{run.stop(sim)}')
             graph.spin_for(run.sizes.cpu_settle_s)
+            before, steps = wakes(sim.pid), len(probe.odoms)
             idle, sent = cpu_percent(), itertools.count()  # then 10 Hz commands on wall time
+            after, steps = wakes(sim.pid), len(probe.odoms) - steps
+            # Per odometry step, by thread: what the idle figure is made of on a machine where
+            # a wake costs more than the work it wakes for.
+            woken = {name: (count - before.get(name, 0)) / max(steps, 1)
+                     for name, count in after.items() if count > before.get(name, 0)}
             timer = probe.create_timer(0.1, lambda: probe.send(0.1, (0.2, 0.3)[next(sent) % 2]),
                                        clock=Clock(clock_type=ClockType.STEADY_TIME))
             busy = cpu_percent()
@@ -219,7 +261,19 @@ def sim_process(run):
                 graph.spin_for(pause.uniform(0.02, 0.045))
         finally:
             run.stop(sim)
-    return idle, busy, latencies, lost
+    return idle, busy, latencies, lost, woken
+
+
+def sleeper_process(run):
+    """Measure SLEEPER's CPU [% of a core] over as long a window as the simulator's."""
+    sleeper = run.start(sys.executable, '-c', SLEEPER)
+    try:
+        time.sleep(run.sizes.cpu_settle_s)
+        used, wall = harness.cpu_seconds(sleeper.pid), time.monotonic()
+        time.sleep(run.sizes.cpu_seconds)
+        return 100.0 * (harness.cpu_seconds(sleeper.pid) - used) / (time.monotonic() - wall)
+    finally:
+        run.stop(sleeper)
 
 
 def floor_process(run, *args):
@@ -241,7 +295,7 @@ def floor_process(run, *args):
 
 @row('sim')
 def latency(run):
-    _, _, latencies, lost = run.once(sim_process)
+    _, _, latencies, lost, _ = run.once(sim_process)
     p50, p99 = np.percentile(latencies, (50, 99)) if latencies else (math.nan, math.nan)
     return Row(
         'cmd_vel -> odom latency across processes, wall time',
@@ -258,25 +312,32 @@ def latency(run):
 
 @row('sim')
 def cpu_idle(run):
-    idle, busy, _, _ = run.once(sim_process)
+    idle, busy, _, _, woken = run.once(sim_process)
     floor, publishing = run.once(floor_process), run.once(floor_process, 'loop')
+    sleeping = run.once(sleeper_process)
     return Row(
         'unicycle_sim CPU, idle (50 Hz odometry, one subscriber)', f'{idle:.2f} % of a core',
-        f'rclpy alone: {floor:.2f} %; its publishes alone: {publishing:.2f} %; under 10 Hz '
-        f'cmd_vel: {busy:.2f} %', 'CPU time of its threads (/proc) over '
-        f'{run.sizes.cpu_seconds:g} s of wall time, on wall time, publishing odometry to this '
-        'process. rclpy alone: a process with an EventsExecutor and a 50 Hz timer publishing '
-        "the simulator's odometry and /tf bytes, measured the same way: the floor under the "
-        "simulator's figure on this machine. Its publishes alone: the same bytes from a plain "
-        '50 Hz sleeping loop, no executor: what delivering them costs any Python node.',
+        f'rclpy alone: {floor:.2f} %; its publishes alone: {publishing:.2f} %; a loop that only '
+        f'wakes: {sleeping:.2f} %; under 10 Hz cmd_vel: {busy:.2f} %', 'CPU time of its threads '
+        f'(/proc) over {run.sizes.cpu_seconds:g} s of wall time, on wall time, publishing '
+        'odometry to this process. rclpy alone: a process with an EventsExecutor and a 50 Hz '
+        "timer publishing the simulator's odometry and /tf bytes, measured the same way: the "
+        "floor under the simulator's figure on this machine. Its publishes alone: the same "
+        'bytes from a plain 50 Hz sleeping loop, no executor: what delivering them costs any '
+        'Python node. A loop that only wakes: Python sleeping to the next 20 ms and nothing '
+        "else, no ROS: one thread's wake at 50 Hz on this machine. The simulator's threads "
+        f'woke {sum(woken.values()):.1f} times a step ('
+        + ', '.join(f'{name} {count:.1f}' for name, count in sorted(
+            woken.items(), key=lambda item: -item[1])) + ').',
         f'<= {core.TARGET_IDLE_CPU_PERCENT:g} %', idle <= core.TARGET_IDLE_CPU_PERCENT,
         {'idle_percent': idle, 'commands_percent': busy, 'rclpy_floor_percent': floor,
-         'publish_floor_percent': publishing})
+         'publish_floor_percent': publishing, 'sleep_floor_percent': sleeping,
+         'wakes_per_step': woken})
 
 
 @row('sim')
 def cpu_commands(run):
-    idle, busy, _, _ = run.once(sim_process)
+    idle, busy, _, _, _ = run.once(sim_process)
     return Row(
         'unicycle_sim CPU under 10 Hz cmd_vel', f'{busy:.2f} % of a core', f'idle: {idle:.2f} %',
         f'Same process, {run.sizes.cpu_seconds:g} s with a Twist every 100 ms (alternating '
