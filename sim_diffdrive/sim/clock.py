@@ -84,24 +84,23 @@ class FollowedClock:
         # This robot's side of another simulator's lockstep, when it runs on one's /clock.
         self.participant = None
         self._clock = sim.get_clock()
-        self._wall = False
+        # use_sim_time is read-only here (parameters.py): the clock is chosen once.
+        self._wall = not sim.get_parameter('use_sim_time').value
         self._stepped_ns = 0  # the time of the last odometry step, on wall time
 
     def start(self):
         sim = self.sim
         sim.create_timer(sim.step_ns / _NS, self._on_timer)
-        if sim.get_parameter('use_sim_time').value:
+        if not self._wall:
             self.participant = take_part(sim)
-        else:
-            self._wall = True
 
     def now_ns(self):
-        clock = self._clock
-        if clock.ros_time_is_active:  # use_sim_time: the time /clock gave
-            return clock.now().nanoseconds
-        # Otherwise a ROS clock is the system clock, read here as an integer: Clock.now()
-        # builds a Time object, 4-5 us a call against 1.2 us for this check and read (timeit).
-        return time.time_ns()
+        if self._wall:
+            # The system clock, read as an integer: Clock.now() builds a Time object, and
+            # asking the clock whether ROS time is active locks it (both cost more than this
+            # read in a step that starts from cold caches: py-spy of an idle simulator).
+            return time.time_ns()
+        return self._clock.now().nanoseconds  # the time /clock gave
 
     def step_if_due(self):
         """On wall time, take the odometry step now if it is due (after a command)."""
