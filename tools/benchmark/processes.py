@@ -222,31 +222,34 @@ def wakes(pid):
     return counts
 
 
+def cpu_percent(pid, wait, seconds):
+    """Return the CPU of process pid [% of a core] while wait(seconds) passes (/proc)."""
+    used, wall = harness.cpu_seconds(pid), time.monotonic()
+    wait(seconds)
+    return 100.0 * (harness.cpu_seconds(pid) - used) / (time.monotonic() - wall)
+
+
 def sim_process(run):
     """Measure a unicycle_sim at 50 Hz on wall time: CPU and wakes idle, commanded; latency."""
     with harness.SimGraph(executor_class=EventsExecutor) as graph:
         probe, sim = graph.probe('bench_observer', use_sim_time=False), run.start(
             'unicycle_sim', rate_hz=50.0)
-
-        def cpu_percent():
-            used, wall = harness.cpu_seconds(sim.pid), time.monotonic()
-            graph.spin_for(run.sizes.cpu_seconds)
-            return 100.0 * (harness.cpu_seconds(sim.pid) - used) / (time.monotonic() - wall)
         try:
             if not graph.spin_until(lambda: probe.odom is not None
                                     and probe.cmd_pub.get_subscription_count() > 0, 15.0):
                 raise RuntimeError(f'no odometry from unicycle_sim:\n{run.stop(sim)}')
             graph.spin_for(run.sizes.cpu_settle_s)
-            before, steps = wakes(sim.pid), len(probe.odoms)
-            idle, sent = cpu_percent(), itertools.count()  # then 10 Hz commands on wall time
-            after, steps = wakes(sim.pid), len(probe.odoms) - steps
+            before, heard = wakes(sim.pid), len(probe.odoms)
+            idle = cpu_percent(sim.pid, graph.spin_for, run.sizes.cpu_seconds)
+            after, steps = wakes(sim.pid), len(probe.odoms) - heard
             # Per odometry step, by thread: what the idle figure is made of on a machine where
             # a wake costs more than the work it wakes for.
             woken = {name: (count - before.get(name, 0)) / max(steps, 1)
                      for name, count in after.items() if count > before.get(name, 0)}
+            sent = itertools.count()  # then 10 Hz commands on wall time
             timer = probe.create_timer(0.1, lambda: probe.send(0.1, (0.2, 0.3)[next(sent) % 2]),
                                        clock=Clock(clock_type=ClockType.STEADY_TIME))
-            busy = cpu_percent()
+            busy = cpu_percent(sim.pid, graph.spin_for, run.sizes.cpu_seconds)
             probe.destroy_timer(timer)
             latencies, lost, pause = [], 0, random.Random(1)
             for k in range(run.sizes.latency_samples):
@@ -269,9 +272,7 @@ def sleeper_process(run):
     sleeper = run.start(sys.executable, '-c', SLEEPER)
     try:
         time.sleep(run.sizes.cpu_settle_s)
-        used, wall = harness.cpu_seconds(sleeper.pid), time.monotonic()
-        time.sleep(run.sizes.cpu_seconds)
-        return 100.0 * (harness.cpu_seconds(sleeper.pid) - used) / (time.monotonic() - wall)
+        return cpu_percent(sleeper.pid, time.sleep, run.sizes.cpu_seconds)
     finally:
         run.stop(sleeper)
 
@@ -286,9 +287,7 @@ def floor_process(run, *args):
             if not graph.spin_until(lambda: len(listener.odoms) > 2, 15.0):
                 raise RuntimeError(f'nothing from the rclpy floor process:\n{run.stop(floor)}')
             graph.spin_for(run.sizes.cpu_settle_s)
-            used, wall = harness.cpu_seconds(floor.pid), time.monotonic()
-            graph.spin_for(run.sizes.cpu_seconds)
-            return 100.0 * (harness.cpu_seconds(floor.pid) - used) / (time.monotonic() - wall)
+            return cpu_percent(floor.pid, graph.spin_for, run.sizes.cpu_seconds)
         finally:
             run.stop(floor)
 
