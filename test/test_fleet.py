@@ -23,6 +23,7 @@ from sim_diffdrive.angles import normalize_angle
 from sim_diffdrive.sim.fleet import Fleet
 from sim_diffdrive.sim.fleet import integrate_all
 from sim_diffdrive.sim.fleet import normalize_angles
+from sim_diffdrive.sim.fleet import ONE_BY_ONE
 from sim_diffdrive.sim.kinematics import integrate
 from sim_diffdrive.sim.kinematics import SMALL_ANGLE
 from sim_diffdrive.sim.kinematics import UnicycleModel
@@ -141,19 +142,20 @@ def _arrays(fleet):
         'integrated_ns')]
 
 
-@pytest.mark.parametrize('seed', [1, 2, 3])
-def test_a_fleet_at_rest_steps_as_one_that_looks_at_every_robot(seed):
-    """Commands, stops, early commands, resets, timeouts, clock jumps: bit for bit the same."""
+def play_events(seed, fleets, before_step):
+    """
+    Step two fleets through the same random events, asserting their arrays equal after each.
+
+    The events: commands, stops, early commands, resets, cmd_vel timeouts, clock jumps.
+    before_step(fleets) runs before each step.  Return how many steps began with the first
+    fleet at rest.
+    """
     rng = random.Random(seed)
-    timeouts = ([], [])
-    fleets = [Fleet([(0.5, -0.5, 1.0)] * 4, timeout_ns=300_000_000,
-                    on_timeout=lambda i, _, t=timeouts[k]: t.append(i), max_linear_accel=2.0)
-              for k in range(2)]
     now, rested = 0, 0
     for _ in range(600):
         now += -500_000_000 if rng.random() < 0.02 else rng.choice([20_000_000, 1_000_000])
         event = rng.random()
-        i = rng.randrange(4)
+        i = rng.randrange(len(fleets[0]))
         for fleet in fleets:  # as robot.py hands a command over, at the moment it arrives
             if event < 0.04:
                 fleet.advance_robot_to(i, now)
@@ -166,12 +168,48 @@ def test_a_fleet_at_rest_steps_as_one_that_looks_at_every_robot(seed):
             elif event < 0.13:
                 fleet.reset(i, 1.0, 2.0, 0.5)
         rested += fleets[0].resting
-        fleets[1].resting = False  # looks at every robot, every step
+        before_step(fleets)
         for fleet in fleets:
             fleet.advance_to(now)
         assert _arrays(fleets[0]) == _arrays(fleets[1])
+    return rested
+
+
+def two_fleets(count, timeouts):
+    """Return two fleets of count robots with a cmd_vel timeout and an acceleration limit."""
+    return [Fleet([(0.5, -0.5, 1.0)] * count, timeout_ns=300_000_000,
+                  on_timeout=lambda i, _, t=timeouts[k]: t.append(i), max_linear_accel=2.0)
+            for k in range(2)]
+
+
+@pytest.mark.parametrize('one_by_one', [True, False])
+@pytest.mark.parametrize('seed', [1, 2, 3])
+def test_a_fleet_at_rest_steps_as_one_that_looks_at_every_robot(seed, one_by_one):
+    """Commands, stops, early commands, resets, timeouts, clock jumps: bit for bit the same."""
+    timeouts = ([], [])
+    fleets = two_fleets(4, timeouts)
+    for fleet in fleets:
+        fleet.one_by_one = one_by_one
+
+    def look_at_every_robot(fleets):
+        fleets[1].resting = False
+    rested = play_events(seed, fleets, look_at_every_robot)
     assert timeouts[0] == timeouts[1] and timeouts[0]
     assert 50 < rested < 550  # both ways were taken, many times
+
+
+@pytest.mark.parametrize('count', [1, 4, ONE_BY_ONE])
+@pytest.mark.parametrize('seed', [1, 2])
+def test_a_small_fleet_stepped_robot_by_robot_moves_as_in_numpy(seed, count):
+    """The same events as above: robot by robot on floats, bit for bit what numpy gives."""
+    timeouts = ([], [])
+    fleets = two_fleets(count, timeouts)
+    assert fleets[1].one_by_one
+    fleets[1].one_by_one = False
+    play_events(seed, fleets, lambda fleets: None)
+    assert timeouts[0] == timeouts[1]
+    assert timeouts[0] or count == 1  # (one robot, commanded this often, never timed out)
+    assert Fleet([(0.0, 0.0, 0.0)] * (ONE_BY_ONE + 1)).one_by_one is False
 
 
 def test_any_velocity_or_early_command_wakes_a_resting_fleet():
