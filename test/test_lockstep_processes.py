@@ -127,10 +127,16 @@ def reset_client(graph):
 
 @pytest.fixture
 def simulator(graph, request):
-    """Start unicycle_sim owning time; yield (process, probe on its odometry, reset())."""
-    lockstep_timeout = getattr(request, 'param', 0.5)
-    sim = start('unicycle_sim', 'publish_clock:=true', f'real_time_factor:={FACTOR}',
-                f'lockstep_timeout:={lockstep_timeout}')
+    """
+    Start unicycle_sim owning time; yield (process, probe on its odometry, reset()).
+
+    Its parameters: lockstep_timeout 0.5 and real_time_factor FACTOR, unless the test's
+    indirect parameter (a dict) names others.
+    """
+    params = {'lockstep_timeout': 0.5, 'real_time_factor': FACTOR,
+              **getattr(request, 'param', {})}
+    sim = start('unicycle_sim', 'publish_clock:=true',
+                *(f'{name}:={value}' for name, value in params.items()))
     reset = reset_client(graph)
     probe = graph.probe()
 
@@ -234,6 +240,14 @@ def test_motions_end_exact_and_bit_identical_on_a_busy_machine(graph, busy_machi
         assert int(answers) <= 1.5 * int(steps), (node, answers, steps)
 
 
+# At real time, not at FACTOR: a process killed while it writes into another's Fast DDS
+# shared-memory port can leave that port taking nothing more from anyone (eProsima/Fast-DDS
+# #5469, open).  At 40x the motion writes there thousands of times a second, and in about one
+# run in a hundred the late motion was never taken in: the simulator had matched its answers,
+# yet none arrived in 25 s, nor after the killed writer's lease ran out (docs/robustness.md,
+# "Known gaps").  At real time it writes there at a fortieth of the rate.
+@pytest.mark.parametrize('simulator', [{'real_time_factor': 1.0}], indirect=True,
+                         ids=['real_time'])
 def test_a_killed_participant_is_left_behind_and_a_late_one_is_waited_for(graph, simulator):
     sim, probe, _ = simulator
     circle = start('circle_back_and_forth', 'use_sim_time:=true')
@@ -242,8 +256,8 @@ def test_a_killed_participant_is_left_behind_and_a_late_one_is_waited_for(graph,
         circle.send(signal.SIGKILL)
         circle.wait()
         killed_at = stamp_s(probe.odom)
-        # The clock goes on without it (freewheeling at up to FACTOR once it is dropped, so the
-        # probe may read odometry far behind), and the cmd_vel timeout stops the robot (exactly
+        # The clock goes on without it (freewheeling once it is dropped, so the probe may read
+        # odometry behind), and the cmd_vel timeout stops the robot (exactly
         # cmd_vel_timeout after the last command: test_sim_graph.py measures that).
         assert graph.spin_until(lambda: stamp_s(probe.odom) > killed_at + 2.0
                                 and probe.odom.twist.twist.linear.x == 0.0, 20.0)
@@ -321,7 +335,7 @@ def test_a_simulator_that_was_not_running_gives_nobody_up(graph, simulator):
 
 # The default lockstep_timeout: on a loaded machine a participant may take longer than the
 # fixture's 0.5 s to answer, and this test asserts that nobody is dropped.
-@pytest.mark.parametrize('simulator', [2.0], indirect=True)
+@pytest.mark.parametrize('simulator', [{'lockstep_timeout': 2.0}], indirect=True, ids=['2.0'])
 def test_a_foreign_publisher_does_not_stall_the_clock(graph, simulator):
     sim, probe, _ = simulator
     # A teleop that does not take part, publishing on the wall clock: 500 commands a second,
@@ -352,7 +366,7 @@ def test_a_foreign_publisher_does_not_stall_the_clock(graph, simulator):
     assert 'did not answer' not in sim_output and 'going on without' not in sim_output
 
 
-@pytest.mark.parametrize('simulator', [5.0], indirect=True)
+@pytest.mark.parametrize('simulator', [{'lockstep_timeout': 5.0}], indirect=True, ids=['5.0'])
 def test_a_clock_held_for_a_slow_participant_is_not_a_dead_simulator(graph, simulator):
     sim, probe, _ = simulator
     sent = collections.Counter()  # /clock messages per step: the step and its re-sends
