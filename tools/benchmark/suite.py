@@ -30,6 +30,8 @@ ROOT = Path(__file__).resolve().parents[2]
 # --quick checks the row on one module of pure tests: the suite itself runs the quick run.
 QUICK_COMMAND = (sys.executable, '-m', 'pytest', '-q', '-p', 'no:cacheprovider',
                  'test/test_kinematics.py')
+# make test's whole output, from the full run: a failure's own text, not only the run's tail.
+SUITE_LOG = ROOT / 'out' / 'suite.log'
 
 
 def machine_busy_s():
@@ -53,6 +55,7 @@ def run_suite(command, timeout):
         r'(\d+) (passed|failed|skipped|errors?)', summary)}
     return {'command': ' '.join(command), 'returncode': result.returncode, 'wall_s': wall_s,
             'cpu_s': cpu_s, 'summary': summary, 'counts': counts,
+            'output': result.stdout + result.stderr,
             'output_tail': '' if result.returncode == 0 else core.tail(
                 result.stdout + result.stderr, 30)}
 
@@ -64,8 +67,13 @@ def suite(run):
         subprocess.run(('make', '-s', 'venv'), cwd=ROOT, check=True, capture_output=True)
     measured = run_suite(QUICK_COMMAND if quick else ('make', '-s', 'test'),
                          120.0 if quick else 900.0)
+    output = measured.pop('output')
+    if not quick:
+        SUITE_LOG.parent.mkdir(exist_ok=True)
+        SUITE_LOG.write_text(output)
     if measured['returncode'] != 0:
-        print(f'{measured["command"]} failed ({measured["returncode"]}):\n'
+        print(f'{measured["command"]} failed ({measured["returncode"]}; '
+              f'{"the whole output: " + str(SUITE_LOG) if not quick else "its tail"}):\n'
               + measured['output_tail'], file=sys.stderr)
     cores = os.cpu_count()
     counts = ', '.join(f'{n} {kind}' for kind, n in measured['counts'].items()) or 'no summary'
