@@ -379,9 +379,9 @@ class MotionNode(Node):
             return
         waited = time.monotonic() - self._wall_start
         if waited > self.params.start_timeout:
-            # A simulator in lockstep is there: its side of discovery is what is missing.
             hint = ('it runs but has not heard this node yet (a slow or lossy link: raise '
-                    'start_timeout).' if 'lockstep' in missing else
+                    'start_timeout; a process killed while it ran on this machine can leave '
+                    'it deaf to new ones: restart it).' if 'lockstep' in missing else
                     'is the robot (or unicycle_sim) running?')
             self.finish(EXIT_FAILED, f'Gave up after {waited:.1f} s waiting for {missing}; '
                                      f'{hint} Nothing moved.')

@@ -86,8 +86,9 @@ def test_a_simulator_in_lockstep_that_never_takes_it_in_is_named_not_taken_for_a
     assert node.start_ns is None  # never started
     err = capfd.readouterr().err
     assert 'waiting for the simulator to take this node into its lockstep; it runs but has ' \
-        'not heard this node yet (a slow or lossy link: raise start_timeout). Nothing moved.' \
-        in err, err
+        'not heard this node yet (a slow or lossy link: raise start_timeout; a process killed ' \
+        'while it ran on this machine can leave it deaf to new ones: restart it). Nothing ' \
+        'moved.' in err, err
     graph.step_for(0.1)
     assert graph.pose() == (0.0, 0.0, 0.0)
 
