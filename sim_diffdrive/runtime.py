@@ -85,6 +85,16 @@ def destroyed_if_refused(node):
     """
     try:
         yield node
+    except KeyboardInterrupt:
+        # Ctrl-C or SIGTERM lands wherever the process is: inside an rclpy call it can leave
+        # the node half made (in create_publisher: the publisher listed, its event handlers
+        # not), and rclpy then fails to destroy it.  The interrupt is what happened, and the
+        # process is ending: what is left goes with it.
+        try:
+            node.destroy_node()
+        except Exception:
+            pass
+        raise
     except BaseException:
         node.destroy_node()
         raise
