@@ -92,10 +92,12 @@ def test_several_processes_are_signalled_before_any_is_waited_for(end):
             outputs = [p.output() for p in processes]
     finally:
         kill_all(processes, grace=0.0)
+    # Each assertion shows the outputs: this test failed once in a busy suite, its text lost.
+    assert all('signalled ' in output for output in outputs), outputs
     times = [signalled_at(output) for output in outputs]
     assert max(times) - min(times) < 1.0, outputs
-    assert [p.returncode for p in processes] == [0, 0, 0]
-    assert not any(p.log_path.exists() for p in processes)
+    assert [p.returncode for p in processes] == [0, 0, 0], outputs
+    assert not any(p.log_path.exists() for p in processes), outputs
 
 
 def test_stop_returns_the_output_and_removes_the_temporary_log():
