@@ -210,9 +210,8 @@ def test_a_cmd_vel_flood_is_cheap_the_last_command_wins_and_other_robots_are_unt
                       *ros_args(f'{namespace}/flooded'))
     assert not wait_all(graph, [publisher], 30.0), publisher.describe()
     report = json.loads(publisher.output().strip().splitlines()[-1])
-    # Paced at 2 kHz, a publisher on a loaded machine sends less in its second (700, once, in
-    # a suite beside a busy loop): 500 is still ten times the fastest controller's rate.
-    assert report['acked'] and report['sent'] >= 500, report
+    # Paced at 2 kHz, a publisher on a loaded machine may send a little less in its second.
+    assert report['acked'] and report['sent'] >= 1000, report
     assert graph.spin_until(lambda: twist(flooded.odom) == (0.777, -0.555), 10.0), sim.describe()
     flood_cpu = (cpu_seconds(sim.pid) - cpu_before
                  - idle_rate * (time.monotonic() - wall_before))
