@@ -41,21 +41,27 @@ def machine_busy_s():
     return (sum(ticks[:8]) - ticks[3] - ticks[4]) / os.sysconf('SC_CLK_TCK')
 
 
-def run_suite(command, timeout):
-    """Run command in the package's folder; return its wall s, the machine's CPU s, counts."""
+def run_suite(command, timeout, log_path=None):
+    """
+    Run command in the package's folder; return its wall s, the machine's CPU s, counts.
+
+    Its whole output goes to log_path too, if given.
+    """
     # On ROS domains of its own, as a user's make test: not on this run's.
     env = {k: v for k, v in os.environ.items() if k not in (DOMAIN_VARIABLE, 'ROS_DOMAIN_ID')}
     busy, start = machine_busy_s(), time.monotonic()
     result = subprocess.run(command, cwd=ROOT, env=env, capture_output=True, text=True,
                             timeout=timeout)
     wall_s, cpu_s = time.monotonic() - start, machine_busy_s() - busy
+    if log_path is not None:
+        log_path.parent.mkdir(exist_ok=True)
+        log_path.write_text(result.stdout + result.stderr)
     lines = result.stdout.strip().splitlines()
     summary = lines[-1] if lines else ''
     counts = {kind: int(n) for n, kind in re.findall(
         r'(\d+) (passed|failed|skipped|errors?)', summary)}
     return {'command': ' '.join(command), 'returncode': result.returncode, 'wall_s': wall_s,
             'cpu_s': cpu_s, 'summary': summary, 'counts': counts,
-            'output': result.stdout + result.stderr,
             'output_tail': '' if result.returncode == 0 else core.tail(
                 result.stdout + result.stderr, 30)}
 
@@ -66,11 +72,7 @@ def suite(run):
     if not quick:  # a warm venv, as the target says: set it up first if make would, untimed
         subprocess.run(('make', '-s', 'venv'), cwd=ROOT, check=True, capture_output=True)
     measured = run_suite(QUICK_COMMAND if quick else ('make', '-s', 'test'),
-                         120.0 if quick else 900.0)
-    output = measured.pop('output')
-    if not quick:
-        SUITE_LOG.parent.mkdir(exist_ok=True)
-        SUITE_LOG.write_text(output)
+                         120.0 if quick else 900.0, None if quick else SUITE_LOG)
     if measured['returncode'] != 0:
         print(f'{measured["command"]} failed ({measured["returncode"]}; '
               f'{"the whole output: " + str(SUITE_LOG) if not quick else "its tail"}):\n'
