@@ -35,11 +35,6 @@ from sim_diffdrive.harness import isolated_domain_id
 from sim_diffdrive.harness import SimGraph
 from sim_diffdrive.testing.graph import DOMAIN_BLOCK
 
-# For the processes the tests start: numpy's OpenBLAS starts a thread per core that spins
-# about 0.1 s after numpy's import (0.13 CPU s for `import numpy`, against 0.07 with one
-# thread); the package's arrays are a few dozen numbers, which one thread handles.
-os.environ.setdefault('OPENBLAS_NUM_THREADS', '1')
-
 DOMAIN_ID = isolated_domain_id()
 if os.environ.get('PYTEST_XDIST_WORKER', 'gw0') != 'gw0':
     # pytest -n: each worker on a domain of its own, the next ones of the block that the run
