@@ -20,10 +20,11 @@ wall-time ``unicycle_sim`` (cmd_vel timeout off) from a publisher process and pr
 reached, odometry's rate idle and during the flood, the simulator's CPU and memory (RSS) over
 time and whether the last command won; exit 0 if odometry kept its rate within 10 %, RSS grew
 less than 1 MB after the first second and the last command won.  ``python tools/stress.py flood
---rate R --seconds S [--final V W] [--refused] [--ros-args ...]`` is the publisher (test_faults
-uses it): R Hz (0: flat out) of 100 pre-serialized Twists (with --refused every other one has
-a NaN speed, which the simulator refuses) once a subscriber is there, then --final, and a JSON
-line of what it sent.  On a ROS domain of its own, discovery on this machine only.
+--rate R (--seconds S | --count N) [--final V W] [--refused] [--ros-args ...]`` is the
+publisher (test_faults uses it): R Hz (0: flat out) of 100 pre-serialized Twists (with
+--refused every other one has a NaN speed, which the simulator refuses) once a subscriber is
+there, for S seconds or until N are sent, then --final, and a JSON line of what it sent.  On a
+ROS domain of its own, discovery on this machine only.
 """
 
 import argparse
@@ -40,6 +41,8 @@ def flood(argv):  # the publisher process (see the module's docstring)
     parser = argparse.ArgumentParser(prog='stress.py flood')
     parser.add_argument('--rate', type=float, default=10000.0, help='Hz; 0 = flat out')
     parser.add_argument('--seconds', type=float, default=10.0)
+    parser.add_argument('--count', type=int, help='send this many, however long it takes '
+                        '(instead of --seconds: a loaded machine sends fewer in a second)')
     parser.add_argument('--final', type=float, nargs=2, metavar=('V', 'W'))
     parser.add_argument('--refused', action='store_true', help='every other Twist has a NaN')
     args, ros_args = parser.parse_known_args(argv)
@@ -60,14 +63,15 @@ def flood(argv):  # the publisher process (see the module's docstring)
     payloads = [serialize_message(twist(
         math.nan if args.refused and k % 2 else 0.01 * k, -0.01 * k)) for k in range(100)]
     sent, start_wall, start = 0, time.time(), time.monotonic()
-    while time.monotonic() < start + args.seconds:
+    while (sent < args.count if args.count else time.monotonic() < start + args.seconds):
         ahead = start + sent / args.rate - time.monotonic() if args.rate else 0.0
         if ahead > 0.0:
             time.sleep(ahead)
             continue
-        for payload in payloads[sent % 100:sent % 100 + 50]:  # a batch between clock reads
+        batch = min(50, args.count - sent) if args.count else 50  # between two clock reads
+        for payload in payloads[sent % 100:sent % 100 + batch]:
             publisher.publish(payload)
-        sent += 50
+        sent += batch
     elapsed = time.monotonic() - start
     if args.final:
         publisher.publish(twist(*args.final))
