@@ -46,6 +46,8 @@ def flood(argv):  # the publisher process (see the module's docstring)
     parser.add_argument('--final', type=float, nargs=2, metavar=('V', 'W'))
     parser.add_argument('--refused', action='store_true', help='every other Twist has a NaN')
     args, ros_args = parser.parse_known_args(argv)
+    if args.count is not None and args.count < 1:
+        parser.error(f'--count must be at least 1; got {args.count}')
     from geometry_msgs.msg import Twist
     import rclpy
     from rclpy.duration import Duration
@@ -63,12 +65,13 @@ def flood(argv):  # the publisher process (see the module's docstring)
     payloads = [serialize_message(twist(
         math.nan if args.refused and k % 2 else 0.01 * k, -0.01 * k)) for k in range(100)]
     sent, start_wall, start = 0, time.time(), time.monotonic()
-    while (sent < args.count if args.count else time.monotonic() < start + args.seconds):
+    counted = args.count is not None
+    while (sent < args.count if counted else time.monotonic() < start + args.seconds):
         ahead = start + sent / args.rate - time.monotonic() if args.rate else 0.0
         if ahead > 0.0:
             time.sleep(ahead)
             continue
-        batch = min(50, args.count - sent) if args.count else 50  # between two clock reads
+        batch = min(50, args.count - sent) if counted else 50  # between two clock reads
         for payload in payloads[sent % 100:sent % 100 + batch]:
             publisher.publish(payload)
         sent += batch
