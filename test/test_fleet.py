@@ -209,7 +209,11 @@ def test_a_small_fleet_stepped_robot_by_robot_moves_as_in_numpy(seed, count):
     play_events(seed, fleets, lambda fleets: None)
     assert timeouts[0] == timeouts[1]
     assert timeouts[0] or count == 1  # (one robot, commanded this often, never timed out)
-    assert Fleet([(0.0, 0.0, 0.0)] * (ONE_BY_ONE + 1)).one_by_one is False
+
+
+def test_a_fleet_larger_than_one_by_one_is_stepped_in_numpy():
+    assert Fleet([(0.0, 0.0, 0.0)] * ONE_BY_ONE).one_by_one
+    assert not Fleet([(0.0, 0.0, 0.0)] * (ONE_BY_ONE + 1)).one_by_one
 
 
 def test_any_velocity_or_early_command_wakes_a_resting_fleet():
