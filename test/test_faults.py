@@ -157,7 +157,7 @@ def test_simulator_refuses_garbage_commands_and_stale_stamps(graph, procs):
         stamped_pub.publish(msg)
 
     def applied(watcher, expected):
-        return graph.spin_until(lambda: twist(watcher.odom) == expected, 5.0, poll=0.01)
+        return graph.spin_until(lambda: watcher.twist == expected, 5.0, poll=0.01)
 
     send_plain(0.2, 0.1)
     send_stamped(0.2, 0.1, 0.0)
@@ -213,7 +213,7 @@ def test_a_cmd_vel_flood_is_cheap_the_last_command_wins_and_other_robots_are_unt
     assert not wait_all(graph, [publisher], 30.0), publisher.describe()
     report = json.loads(publisher.output().strip().splitlines()[-1])
     assert report['acked'] and report['sent'] == 2000, report
-    assert graph.spin_until(lambda: twist(flooded.odom) == (0.777, -0.555), 10.0), sim.describe()
+    assert graph.spin_until(lambda: flooded.twist == (0.777, -0.555), 10.0), sim.describe()
     flood_cpu = (cpu_seconds(sim.pid) - cpu_before
                  - idle_rate * (time.monotonic() - wall_before))
     # The simulator's own steps are taken out at the rate measured just before.  Measured
@@ -260,7 +260,7 @@ def test_a_command_is_not_pushed_out_by_the_many_sent_after_it(graph):
     for _ in range(200):
         pub.publish(command(math.nan, 0.0))
     assert pub.wait_for_all_acked(Duration(seconds=10.0))
-    assert graph.spin_until(lambda: twist(watcher.odom) == (0.3, 0.2), 5.0), twist(watcher.odom)
+    assert graph.spin_until(lambda: watcher.twist == (0.3, 0.2), 5.0), twist(watcher.odom)
 
 
 def test_a_backlog_of_commands_does_not_hold_the_odometry_back(graph):
@@ -329,11 +329,11 @@ def test_two_controllers_at_once_are_warned_about_once(graph, procs):
     for node, speeds in ((on_sim_time, (0.2, 0.0)), (on_wall_time, (0.0, 0.5))):
         pub = node.create_publisher(Twist, 'cmd_vel', 10)
         node.create_timer(0.04, lambda pub=pub, speeds=speeds: pub.publish(command(*speeds)))
-    assert graph.spin_until(lambda: moving(watcher.odom), 20.0), sim.describe()
+    assert graph.spin_until(lambda: watcher.moving, 20.0), sim.describe()
     start = stamp_s(watcher.odom)
     # Simulated time keeps running (the publisher count is checked once a simulated second),
     # commands keep taking effect, and the warning comes once.
-    assert graph.spin_until(lambda: stamp_s(watcher.odom) > start + 3.5, 10.0), (
+    assert graph.spin_until(lambda: watcher.stamp_s > start + 3.5, 10.0), (
         f'simulated time stood still at {stamp_s(watcher.odom):.2f} s')
     assert twist(watcher.odom) in ((0.2, 0.0), (0.0, 0.5))
     output = sim.output()

@@ -140,13 +140,13 @@ def test_killed_controller_is_stopped_by_the_simulator_timeout(graph, procs):
     controller = procs('controller', 'circle_back_and_forth', *ros_args(
         namespace, 'half_period:=100.0'))
     assert graph.spin_until(
-        lambda: moving(watcher.odom) and moving(keeper.odom) and len(watcher.commands) > 3,
+        lambda: watcher.moving and keeper.moving and len(watcher.commands) > 3,
         20.0), controller.describe() + timed.describe()
 
     controller.send(signal.SIGKILL)
     # Judged by the odometry's stamps, not by when it reaches this process: on a loaded machine
     # delivery (or this process) may lag behind by a good part of a second.
-    assert graph.spin_until(lambda: twist(watcher.odom) == (0.0, 0.0), 10.0), timed.describe()
+    assert graph.spin_until(lambda: watcher.twist == (0.0, 0.0), 10.0), timed.describe()
     assert controller.wait(10.0) == -signal.SIGKILL  # on a busy machine, not reaped at once
 
     # The timeout counts from when the simulator took the last command, which it logs: on a
@@ -168,8 +168,8 @@ def test_killed_controller_is_stopped_by_the_simulator_timeout(graph, procs):
     took_s = last_stop()
     assert abs(took_s - heard_s) < 0.4, (took_s, heard_s)
     settled_s = took_s + timeout_s + 0.2
-    assert graph.spin_until(lambda: stamp_s(watcher.odom) > settled_s
-                            and stamp_s(keeper.odom) > settled_s, 10.0)
+    assert graph.spin_until(lambda: watcher.stamp_s > settled_s
+                            and keeper.stamp_s > settled_s, 10.0)
     last_moving = [o for o in watcher.odoms if moving(o)][-1]
     first_stopped = next(o for o in watcher.odoms
                          if stamp_s(o) > stamp_s(last_moving))

@@ -66,7 +66,7 @@ def finish(graph, process, timeout=60.0):
 
 def at_rest_after(graph, probe, stamp):
     """Spin until odometry stamped 0.1 s after stamp came; return its yaw."""
-    assert graph.spin_until(lambda: stamp_s(probe.odom) > stamp + 0.1, 10.0)
+    assert graph.spin_until(lambda: probe.stamp_s > stamp + 0.1, 10.0)
     return pose_of(probe.odom)[2]
 
 
@@ -85,7 +85,7 @@ def test_foreign_stale_and_zero_stamps_never_stall_or_drop_anyone(graph):
         # All-zero commands from a node that does not take part, stamped 0 or 1 s ago, every
         # millisecond: some land between a motion's command and the end of its step.
         msg = TwistStamped()
-        stamp_ns = 0 if len(stale) % 2 else max(0, round((stamp_s(probe.odom) - 1.0) * 1e9))
+        stamp_ns = 0 if len(stale) % 2 else max(0, round((probe.stamp_s - 1.0) * 1e9))
         msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(stamp_ns, 10 ** 9)
         foreign.publish(msg)
         stale.append(stamp_ns)
@@ -125,7 +125,7 @@ def test_a_participant_that_leaves_never_stalls_the_clock(graph):
         assert code == 0, output
         stamp = stamp_s(probe.odom)
         # Freewheeling again at once: a simulated second passes within a few wall seconds.
-        assert graph.spin_until(lambda: stamp_s(probe.odom) > stamp + 1.0, 5.0)
+        assert graph.spin_until(lambda: probe.stamp_s > stamp + 1.0, 5.0)
         yaw = pose_of(probe.odom)[2]
         assert angle_error(yaw, math.radians(90.0)) < 1e-12, output
     finally:
@@ -195,7 +195,7 @@ def test_a_timed_motion_whose_simulator_dies_stops_and_fails(graph):
     probe = graph.probe(use_sim_time=False, listen_only=True)
     motion = start('timed_out_and_back', 'use_sim_time:=true')
     try:
-        assert graph.spin_until(lambda: harness.is_moving(probe.odom), 20.0), motion.describe()
+        assert graph.spin_until(lambda: probe.moving, 20.0), motion.describe()
         sim.kill()
         code, output = finish(graph, motion, timeout=10.0)
     finally:

@@ -179,7 +179,7 @@ def run_motions(graph, sim, probes, motions):
         lambda: len(LEFT_AT.findall(sim.output())) >= left_before + len(motions), 10.0), \
         f'{outputs}\n{sim.describe()}'
     after_s = max(float(left_s) for left_s in LEFT_AT.findall(sim.output())[left_before:])
-    assert graph.spin_until(lambda: all(stamp_s(p.odom) > after_s for p in probes.values()),
+    assert graph.spin_until(lambda: all(p.stamp_s > after_s for p in probes.values()),
                             10.0)
     return {name: (motion.returncode, outputs[name], probes[name].odom)
             for name, motion in started.items()}
@@ -252,15 +252,15 @@ def test_a_killed_participant_is_left_behind_and_a_late_one_is_waited_for(graph,
     sim, probe, _ = simulator
     circle = start('circle_back_and_forth', 'use_sim_time:=true')
     try:
-        assert graph.spin_until(lambda: probe.odom.twist.twist.linear.x == 0.5, 30.0)
+        assert graph.spin_until(lambda: probe.twist[0] == 0.5, 30.0)
         circle.send(signal.SIGKILL)
         circle.wait()
         killed_at = stamp_s(probe.odom)
         # The clock goes on without it (freewheeling once it is dropped, so the probe may read
         # odometry behind), and the cmd_vel timeout stops the robot (exactly
         # cmd_vel_timeout after the last command: test_sim_graph.py measures that).
-        assert graph.spin_until(lambda: stamp_s(probe.odom) > killed_at + 2.0
-                                and probe.odom.twist.twist.linear.x == 0.0, 20.0)
+        assert graph.spin_until(lambda: probe.stamp_s > killed_at + 2.0
+                                and probe.twist[0] == 0.0, 20.0)
     finally:
         stop(circle, signal.SIGKILL)
     _, _, start_yaw = pose_of(probe.odom)
@@ -282,7 +282,7 @@ def test_a_motion_the_simulator_went_on_without_fails_and_never_says_done(graph,
     sim, probe, _ = simulator
     circle = start('circle_back_and_forth', 'use_sim_time:=true', 'cycles:=1')
     try:
-        assert graph.spin_until(lambda: probe.odom.twist.twist.linear.x == 0.5, 30.0)
+        assert graph.spin_until(lambda: probe.twist[0] == 0.5, 30.0)
         circle.send(signal.SIGSTOP)
         # Until the simulator says so: the probe's latest odometry may lag the simulator by
         # more than a second of sim time on a busy machine, and waiting for a second past it
@@ -296,7 +296,7 @@ def test_a_motion_the_simulator_went_on_without_fails_and_never_says_done(graph,
     assert 'Done in' not in output, output
     assert re.search(r'went on without this node at [0-9.]+ s, [0-9.]+ s into the motion, '
                      r'.*stopped the robot', output), output
-    assert graph.spin_until(lambda: probe.odom.twist.twist.linear.x == 0.0, 10.0)
+    assert graph.spin_until(lambda: probe.twist[0] == 0.0, 10.0)
     assert 'Lockstep: nothing heard from /circle_back_and_forth' in stop(sim)
 
 
@@ -316,8 +316,8 @@ def test_a_simulator_that_was_not_running_gives_nobody_up(graph, simulator):
     try:
         for _ in range(3):
             stamp = stamp_s(probe.odom)
-            assert graph.spin_until(lambda: stamp_s(probe.odom) > stamp + 0.1
-                                    and probe.odom.twist.twist.angular.z != 0.0, 30.0)
+            assert graph.spin_until(lambda: probe.stamp_s > stamp + 0.1
+                                    and probe.twist[1] != 0.0, 30.0)
             assert motion.poll() is None, motion.output()
             sim.send(signal.SIGSTOP)
             time.sleep(0.8)
@@ -327,7 +327,7 @@ def test_a_simulator_that_was_not_running_gives_nobody_up(graph, simulator):
         sim.send(signal.SIGCONT)
         output = stop(motion)
     assert motion.returncode == 0, output
-    assert graph.spin_until(lambda: probe.odom.twist.twist.angular.z == 0.0, 10.0)
+    assert graph.spin_until(lambda: probe.twist[1] == 0.0, 10.0)
     assert angle_error(pose_of(probe.odom)[2], start_yaw - math.radians(90.0)) < 1e-12, output
     sim_output = stop(sim)
     assert 'going on without' not in sim_output, sim_output

@@ -255,7 +255,7 @@ def wait_for_exit(graph, process, timeout=60.0):
 def later_odometry(graph, watchers, seconds=0.2):
     """Let every robot's odometry run on by seconds of simulated time; return the latest."""
     stamps = [stamp_s(w.odom) for w in watchers]
-    assert graph.spin_until(lambda: all(stamp_s(w.odom) > s + seconds
+    assert graph.spin_until(lambda: all(w.stamp_s > s + seconds
                                         for w, s in zip(watchers, stamps)), 10.0)
     return [w.odom for w in watchers]
 
@@ -305,7 +305,7 @@ def test_ctrl_c_stops_every_robot(graph, procs):
     _, watchers = simulator(procs, graph, 'cmd_vel_timeout:=0.0')
     fleet = procs('motion_fleet', 'motion_fleet', *ros_params(
         f'robots:=[{",".join(ROBOTS)}]', 'motions:=[circle_back_and_forth]', sim_time=True))
-    assert graph.spin_until(lambda: all(is_moving(w.odom) for w in watchers), 20.0), \
+    assert graph.spin_until(lambda: all(w.moving for w in watchers), 20.0), \
         fleet.describe()
     output = stop(fleet, signal.SIGINT)
     assert fleet.returncode == 0, output
@@ -332,7 +332,7 @@ def test_a_fleet_names_the_robots_whose_final_stops_nobody_acknowledged(graph, p
     sim, watchers = simulator(procs, graph)
     fleet = procs('motion_fleet', 'motion_fleet', *ros_params(
         f'robots:=[{",".join(ROBOTS)}]', 'motions:=[circle_back_and_forth]', sim_time=True))
-    assert graph.spin_until(lambda: all(is_moving(w.odom) for w in watchers), 20.0), \
+    assert graph.spin_until(lambda: all(w.moving for w in watchers), 20.0), \
         fleet.describe()
     # The graph's nodes go first, as nothing is left to watch: destroying a node after a peer
     # on shared memory was SIGKILLed crashed the pytest worker, in Fast DDS, once in about 30

@@ -25,9 +25,12 @@ from rclpy.qos import ReliabilityPolicy
 from rclpy.time import Time
 from rosgraph_msgs.msg import Clock as ClockMsg
 from sim_diffdrive.harness import angle_error
+from sim_diffdrive.harness import is_moving
 from sim_diffdrive.harness import pose_of
 from sim_diffdrive.harness import Probe
 from sim_diffdrive.harness import SimGraph
+from sim_diffdrive.harness import stamp_s
+from sim_diffdrive.harness import twist_of
 from std_srvs.srv import Empty
 
 NS = 1_000_000_000
@@ -93,6 +96,24 @@ def command(graph, probe, v, w):
     probe.send(v, w)
     settle(graph)
     return graph.now_ns
+
+
+# -- what a probe reads from the bytes ----------------------------------------------------------
+
+def test_a_probes_latest_twist_stamp_and_motion_read_from_bytes_equal_the_message(graph):
+    graph.sim(rate_hz=30.0, initial_x=1.5, initial_yaw=-0.7)  # stamps 1/30 s apart
+    probe = graph.probe()
+    assert (probe.twist, probe.stamp_s, probe.moving) == (None, None, False)
+    seen = set()
+    for v, w in ((0.0, 0.0), (0.25, -1.3), (-0.5, 0.0), (0.0, 2.0), (0.0, 0.0)):
+        command(graph, probe, v, w)
+        for _ in range(3):
+            graph.step_for(0.04)
+            odom = probe.odom
+            assert probe.twist == twist_of(odom) == (v, w)
+            assert probe.stamp_s == stamp_s(odom) and stamp_s(odom) not in seen
+            assert probe.moving == is_moving(odom) == ((v, w) != (0.0, 0.0))
+            seen.add(stamp_s(odom))
 
 
 # -- cmd_vel timeout ---------------------------------------------------------------------------

@@ -30,6 +30,7 @@ from rclpy.parameter import Parameter
 from rclpy.serialization import deserialize_message
 from sim_diffdrive.angles import yaw_from_quaternion
 from sim_diffdrive.cdr import header_stamp_ns
+from sim_diffdrive.cdr import read_odometry
 
 _NS = 1_000_000_000
 
@@ -101,6 +102,10 @@ class Received(Sequence):
         """Return the header stamp [ns] of a message, without making the message."""
         return header_stamp_ns(self._data[index])
 
+    def data(self, index):
+        """Return a message's bytes (CDR), as they came."""
+        return self._data[index]
+
 
 class Probe(Node):
     """Record odometry and send Twist commands, or play a script of them on sim-time ticks."""
@@ -133,6 +138,29 @@ class Probe(Node):
     def odom(self):
         """Return the latest odometry, or None."""
         return self.odoms[-1] if self.odoms else None
+
+    # For the conditions a test spins on: those are asked after every message the graph
+    # handles, and a simulator running ahead of real time sends thousands a second.  Reading a
+    # few fields of the latest message's bytes costs a few microseconds; making the message
+    # (odom), about 100.
+
+    @property
+    def twist(self):
+        """Return (linear.x, angular.z) of the latest odometry, or None; read from its bytes."""
+        return read_odometry(self.odoms.data(-1))[5] if self.odoms else None
+
+    @property
+    def moving(self):
+        """Return whether the latest odometry shows the robot in motion; False before any."""
+        return bool(self.odoms) and self.twist != (0.0, 0.0)
+
+    @property
+    def stamp_s(self):
+        """Return the latest odometry's stamp [s] (sec + nanosec * 1e-9), or None."""
+        if not self.odoms:
+            return None
+        sec, nanosec = divmod(self.odoms.stamp_ns(-1), _NS)
+        return sec + nanosec * 1e-9
 
     def send(self, linear=0.0, angular=0.0):
         self.cmd_pub.publish(twist(linear, angular))
