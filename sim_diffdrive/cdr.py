@@ -40,6 +40,8 @@ _BODY = len(ENCAPSULATION)
 # Encapsulation kinds read here (the second byte; the first is 0): byte order of each.
 _BYTE_ORDER = {0: '>', 1: '<'}
 _LE_STAMP = struct.Struct('<iI')
+_LE_PAIR = struct.Struct('<2d')
+_LE_DOUBLE = struct.Struct('<d')
 _LE_TWIST = struct.Struct('<d32xd')  # linear.x, (linear.y, .z, angular.x, .y), angular.z
 # Odometry after its frames (8-byte aligned): pose (position 3, orientation 4, covariance 36
 # doubles), twist (linear 3, angular 3, covariance 36 doubles).
@@ -143,8 +145,10 @@ class OdometryLayout:
     ``twist_covariance`` are the 36 values every robot's message carries.  Laid out once: a
     change of frames or covariances makes a new layout.  ``serialize`` writes the stamp, the
     poses and the velocities of every robot with a few vectorized writes and returns one
-    ``bytes`` per robot.  Position z and orientation x, y stay 0, as a unicycle's do, and so do
-    the velocities the unicycle does not have (linear.y, .z, angular.x, .y).
+    ``bytes`` per robot; ``serialize_each`` writes the same robot by robot from floats, for a
+    few robots, where numpy's cost per call would be most of it.  Position z and orientation x,
+    y stay 0, as a unicycle's do, and so do the velocities the unicycle does not have
+    (linear.y, .z, angular.x, .y).
 
     Each message starts 4 bytes past a multiple of 8 in the buffer, so that its body (after the
     encapsulation header) is 8-aligned and every double of every message is one element of a
@@ -185,6 +189,9 @@ class OdometryLayout:
         self._i32 = self._buffer.view('<i4')
         self._u32 = self._buffer.view('<u4')
         self._f64 = self._buffer.view('<f8')
+        # The same fields' byte offsets per robot, for serialize_each.
+        self._offsets = [tuple(map(int, offsets)) for offsets in zip(
+            4 * self._sec, 8 * self._x, 8 * self._qz, 8 * self._linear, 8 * self._angular)]
 
     def __len__(self):
         return len(self._spans)
@@ -203,10 +210,24 @@ class OdometryLayout:
         data = self._buffer.tobytes()
         return [data[start:end] for start, end in self._spans]
 
+    def serialize_each(self, sec, nanosec, x, y, qz, qw, linear, angular):
+        """Return what ``serialize`` returns, written robot by robot from sequences of floats."""
+        buffer = self._buffer
+        for i, (stamp, position, orientation, linear_x, angular_z) in enumerate(self._offsets):
+            _LE_STAMP.pack_into(buffer, stamp, sec, nanosec)
+            _LE_PAIR.pack_into(buffer, position, x[i], y[i])
+            _LE_PAIR.pack_into(buffer, orientation, qz[i], qw[i])
+            _LE_DOUBLE.pack_into(buffer, linear_x, linear[i])
+            _LE_DOUBLE.pack_into(buffer, angular_z, angular[i])
+        data = buffer.tobytes()
+        return [data[start:end] for start, end in self._spans]
+
 
 class TransformLayout:
     """
     The CDR bytes of a tf2_msgs/TFMessage with fixed frames; ``serialize`` fills in the rest.
+
+    (``serialize_each`` does the same from floats, transform by transform, as OdometryLayout's.)
 
     ``frames`` holds (frame_id, child_frame_id) per transform.  Translations have z = 0 and
     rotations turn about z only, as a unicycle's do.  Each transform: stamp (int32 sec, uint32
@@ -237,6 +258,9 @@ class TransformLayout:
         self._i32 = self._buffer.view('<i4')
         self._u32 = self._buffer.view('<u4')
         self._f64 = self._buffer.view('<f8')
+        # The same fields' byte offsets per transform, for serialize_each.
+        self._offsets = [tuple(map(int, offsets))
+                         for offsets in zip(4 * stamp, 8 * xy, 8 * self._qz)]
 
     def serialize(self, sec, nanosec, x, y, qz, qw):
         """Return the message's bytes for these values (arrays with one entry per transform)."""
@@ -248,3 +272,12 @@ class TransformLayout:
         f64[self._qz] = qz
         f64[self._qw] = qw
         return self._buffer[_BODY:].tobytes()
+
+    def serialize_each(self, sec, nanosec, x, y, qz, qw):
+        """Return what ``serialize`` returns, written transform by transform from floats."""
+        buffer = self._buffer
+        for i, (stamp, translation, rotation) in enumerate(self._offsets):
+            _LE_STAMP.pack_into(buffer, stamp, sec, nanosec)
+            _LE_PAIR.pack_into(buffer, translation, x[i], y[i])
+            _LE_PAIR.pack_into(buffer, rotation, qz[i], qw[i])
+        return buffer[_BODY:].tobytes()

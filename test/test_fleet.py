@@ -16,6 +16,7 @@
 
 import math
 import random
+import struct
 
 import numpy as np
 import pytest
@@ -142,6 +143,12 @@ def _arrays(fleet):
         'integrated_ns')]
 
 
+def _odometry_bits(fleet):
+    """Return what fleet.odometry() gives, its floats as their IEEE 754 bits (-0.0 is not 0.0)."""
+    stamp_ns, *values = fleet.odometry()
+    return stamp_ns, [struct.pack(f'<{len(v)}d', *v) for v in values]
+
+
 def play_events(seed, fleets, before_step):
     """
     Step two fleets through the same random events, asserting their arrays equal after each.
@@ -172,6 +179,7 @@ def play_events(seed, fleets, before_step):
         for fleet in fleets:
             fleet.advance_to(now)
         assert _arrays(fleets[0]) == _arrays(fleets[1])
+        assert _odometry_bits(fleets[0]) == _odometry_bits(fleets[1])
     return rested
 
 
@@ -201,7 +209,11 @@ def test_a_fleet_at_rest_steps_as_one_that_looks_at_every_robot(seed, one_by_one
 @pytest.mark.parametrize('count', [1, 4, ONE_BY_ONE])
 @pytest.mark.parametrize('seed', [1, 2])
 def test_a_small_fleet_stepped_robot_by_robot_moves_as_in_numpy(seed, count):
-    """The same events as above: robot by robot on floats, bit for bit what numpy gives."""
+    """
+    The same events as above: robot by robot on floats, bit for bit what numpy gives.
+
+    The odometry's values too: floats and math.sin, math.cos against arrays and numpy's.
+    """
     timeouts = ([], [])
     fleets = two_fleets(count, timeouts)
     assert fleets[1].one_by_one
@@ -214,6 +226,24 @@ def test_a_small_fleet_stepped_robot_by_robot_moves_as_in_numpy(seed, count):
 def test_a_fleet_larger_than_one_by_one_is_stepped_in_numpy():
     assert Fleet([(0.0, 0.0, 0.0)] * ONE_BY_ONE).one_by_one
     assert not Fleet([(0.0, 0.0, 0.0)] * (ONE_BY_ONE + 1)).one_by_one
+
+
+@pytest.mark.parametrize('count', [4, ONE_BY_ONE + 1])
+def test_the_odometry_values_are_the_latest_time_and_each_robots_pose_and_velocities(count):
+    poses = [(0.1 * i, -0.2 * i, 0.3 * i - 2.5) for i in range(count)]
+    fleet = Fleet(poses)
+    fleet.advance_to(5_000)
+    fleet.command(count - 1, 0.5, -0.25, 5_000)
+    fleet.advance_robot_to(count - 1, 7_000)
+    stamp_ns, x, y, qz, qw, linear, angular = fleet.odometry()
+    assert stamp_ns == 7_000
+    assert list(x) == pytest.approx([pose[0] for pose in poses], abs=1e-6)
+    assert list(y) == pytest.approx([pose[1] for pose in poses], abs=1e-6)
+    yaws = [math.atan2(2.0 * z * w, 1.0 - 2.0 * z * z) for z, w in zip(qz, qw)]
+    assert yaws == pytest.approx([pose[2] for pose in poses], abs=1e-6)
+    assert list(linear) == [0.0] * (count - 1) + [0.5]
+    assert list(angular) == [0.0] * (count - 1) + [-0.25]
+    assert isinstance(x, list) == (count <= ONE_BY_ONE)
 
 
 def test_any_velocity_or_early_command_wakes_a_resting_fleet():

@@ -52,12 +52,15 @@ from tf2_msgs.msg import TFMessage
     [('a/odom', 'a/base_footprint'), ('robot12/odom', 'robot12/base_footprint'),
      ('o', 'b'), ('team_blue/robot7/odom', 'x')],  # every string length modulo 8
 ])
-def test_the_tf_bytes_written_with_numpy_are_what_rclpy_serializes(frames):
+def test_the_tf_bytes_written_with_numpy_or_from_floats_are_what_rclpy_serializes(frames):
     count = len(frames)
     yaw = np.linspace(-3.1, 3.1, count)
     values = (12345, 678901234, np.linspace(-1e3, 7.5, count), np.linspace(2.0, -0.1, count),
               np.sin(yaw / 2), np.cos(yaw / 2))
-    raw = TransformLayout(frames).serialize(*values)
+    layout = TransformLayout(frames)
+    raw = layout.serialize(*values)
+    # Transform by transform from floats (a simulator of a few robots): the same bytes.
+    assert layout.serialize_each(*values[:2], *(v.tolist() for v in values[2:])) == raw
     expected = TFMessage()
     for i, (frame, child) in enumerate(frames):
         transform = TransformStamped()

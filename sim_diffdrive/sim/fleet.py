@@ -170,6 +170,23 @@ class Fleet:
         return ((self.linear != 0.0) | (self.angular != 0.0)
                 | (self.target_linear != 0.0) | (self.target_angular != 0.0))
 
+    def odometry(self):
+        """
+        Return (time [ns], x, y, qz, qw, linear, angular): what every robot's odometry carries.
+
+        The time is the latest any robot is integrated up to; (qz, qw) is the quaternion of the
+        robot's yaw about z.  Lists of floats for a fleet stepped one by one (math.sin and
+        math.cos, bit for bit numpy's: test_fleet), arrays otherwise.
+        """
+        if self.one_by_one:
+            half = [0.5 * yaw for yaw in self.yaw.tolist()]
+            return (max(self.integrated_ns.tolist()), self.x.tolist(), self.y.tolist(),
+                    [math.sin(h) for h in half], [math.cos(h) for h in half],
+                    self.linear.tolist(), self.angular.tolist())
+        half = 0.5 * self.yaw
+        return (int(self.integrated_ns.max()), self.x, self.y, np.sin(half), np.cos(half),
+                self.linear, self.angular)
+
     # -- commands and time ------------------------------------------------------------------
 
     def command(self, i, linear, angular, at_ns):

@@ -27,7 +27,6 @@ than the wall clock, and publishes it on ``/clock`` for nodes that run with ``us
 
 import re
 
-import numpy as np
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 from rclpy.time import Time
@@ -285,12 +284,12 @@ class UnicycleSim(Node):
     def publish_odom(self):
         """Publish every robot's odometry (and one /tf message with all of them)."""
         fleet = self.fleet
-        stamp_ns = int(fleet.integrated_ns.max())
+        stamp_ns, x, y, qz, qw, linear, angular = fleet.odometry()
         sec, nanosec = divmod(stamp_ns, _NS)
-        half = 0.5 * fleet.yaw
-        qz, qw = np.sin(half), np.cos(half)  # quaternion_from_yaw, for every robot
-        odometry = self._odometry.serialize(sec, nanosec, fleet.x, fleet.y, qz, qw,
-                                            fleet.linear, fleet.angular)
+        each = fleet.one_by_one  # floats, written robot by robot; else arrays
+        layout = self._odometry
+        odometry = (layout.serialize_each if each else layout.serialize)(
+            sec, nanosec, x, y, qz, qw, linear, angular)
         robots = self.robots
         for robot, data in zip(robots, odometry):
             robot.odom_pub.publish(data)
@@ -299,15 +298,15 @@ class UnicycleSim(Node):
             for robot, data in zip(robots, odometry):
                 taps.write(robot.odom_pub.topic_name, data, stamp_ns)
         if self._tf is not None:
-            data = self._tf.publish(sec, nanosec, fleet.x, fleet.y, qz, qw)
+            data = self._tf.publish(sec, nanosec, x, y, qz, qw, each)
             if taps:
                 taps.write(self._tf.publisher.topic_name, data, stamp_ns)
         if taps:
             taps.step(stamp_ns, fleet)
         if self._odom_count % self._path_every == 0:
             stamp = Time(nanoseconds=stamp_ns).to_msg()
-            for robot, *pose in zip(robots, fleet.x.tolist(), fleet.y.tolist(), qz.tolist(),
-                                    qw.tolist()):
+            poses = (x, y, qz, qw) if each else (v.tolist() for v in (x, y, qz, qw))
+            for robot, *pose in zip(robots, *poses):
                 robot.record_path(stamp, stamp_ns, *pose)
         # A graph query per robot per second, not per message (cmd_vel may arrive at kHz
         # rates), spread over the second's steps: all at once, a thousand robots' queries held
