@@ -23,7 +23,8 @@ alone.  Each robot of a Fleet is also a ``UnicycleModel`` (a ``FleetRobot`` whos
 velocities are views into the fleet's arrays), so commands, limits and the acceleration ramp
 are the single-robot code; only a robot that ramps is advanced on its own.  A fleet of up
 to ``ONE_BY_ONE`` robots (a simulator of one robot above all) is stepped robot by robot on
-floats instead, the same operations again, where numpy's cost per call would be most of it.
+floats instead, the same operations again, where numpy's cost per call would be most of it;
+the values of its odometry (``odometry()``) are floats too.
 """
 
 import bisect
