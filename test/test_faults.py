@@ -331,8 +331,7 @@ def test_two_controllers_at_once_are_warned_about_once(graph, procs):
         node.create_timer(0.04, lambda pub=pub, speeds=speeds: pub.publish(command(*speeds)))
     assert graph.spin_until(lambda: watcher.moving, 20.0), sim.describe()
     start = stamp_s(watcher.odom)
-    # Simulated time keeps running (the publisher count is checked once a simulated second),
-    # commands keep taking effect, and the warning comes once.
+    # Simulated time keeps running, commands keep taking effect, and the warning comes once.
     assert graph.spin_until(lambda: watcher.stamp_s > start + 3.5, 10.0), (
         f'simulated time stood still at {stamp_s(watcher.odom):.2f} s')
     assert twist(watcher.odom) in ((0.2, 0.0), (0.0, 0.5))

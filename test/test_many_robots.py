@@ -227,15 +227,28 @@ def test_a_live_cmd_vel_timeout_counts_for_every_robot_from_its_own_last_command
     assert stops == {'early': 20_000_000, 'late': 220_000_000}  # at 1.02 s and 1.22 s
 
 
-def test_two_controllers_on_one_robot_of_a_fleet_are_warned_about_within_a_second(
+def test_two_controllers_on_one_robot_of_a_fleet_are_warned_about_once_and_again_after_one_left(
         fast_graph, capfd):
-    # The simulator asks the graph about each robot's cmd_vel once a simulated second, a few
-    # robots a step (all at once, a thousand robots held one step up for over 100 ms).
+    # DDS tells the simulator when a publisher on a robot's cmd_vel comes or goes (the
+    # subscription's matched event): no graph query per robot, no step needed for it.
     graph = fast_graph
-    graph.sim(robots=ROBOTS[:3])
-    for name in ('controller_a', 'controller_b'):
-        graph.probe(name, namespace='/robot2')  # each publishes on robot2/cmd_vel
+    sim = graph.sim(robots=ROBOTS[:3])
+    robot = sim.robots[2]
+    log = []
+
+    def warnings():
+        log.append(capfd.readouterr().err)
+        return ''.join(log).count('nodes publish on')
+    names = ('controller_a', 'controller_b')
+    controllers = [graph.probe(name, namespace='/robot2') for name in names]
+    assert graph.spin_until(lambda: warnings() == 1, 10.0), log
     graph.step_for(1.1)
-    log = capfd.readouterr().err
-    assert log.count('nodes publish on') == 1, log
-    assert '2 nodes publish on /robot2/cmd_vel' in log, log
+    assert warnings() == 1, log
+    assert '2 nodes publish on /robot2/cmd_vel' in ''.join(log), log
+    assert [r.cmd_publishers for r in sim.robots] == [0, 0, 2]
+    graph.remove(controllers.pop())
+    assert graph.spin_until(lambda: robot.cmd_publishers == 1, 10.0)
+    graph.step_for(0.5)
+    assert warnings() == 1, log
+    graph.probe('controller_c', namespace='/robot2')
+    assert graph.spin_until(lambda: warnings() == 2, 10.0), log

@@ -172,7 +172,6 @@ class UnicycleSim(Node):
         self._tf = OdomTransform(self, self._frames()) if p.publish_tf else None
         self._path_every = max(1, round(p.rate_hz / p.path_rate_hz))
         self._odom_count = 0
-        self._check_every = max(1, round(p.rate_hz))
         self.create_service(Empty, '~/reset', self._on_reset)
         self.clock.start()
         where = (f"{len(names)} robots ({', '.join(names)})" if p.robots else
@@ -308,11 +307,6 @@ class UnicycleSim(Node):
             poses = (x, y, qz, qw) if each else (v.tolist() for v in (x, y, qz, qw))
             for robot, *pose in zip(robots, *poses):
                 robot.record_path(stamp, stamp_ns, *pose)
-        # A graph query per robot per second, not per message (cmd_vel may arrive at kHz
-        # rates), spread over the second's steps: all at once, a thousand robots' queries held
-        # one step up for over 100 ms, and the simulator skipped steps.
-        for robot in robots[self._odom_count % self._check_every::self._check_every]:
-            robot.check_publishers()
         self._odom_count += 1
 
     def shutdown_hook(self):

@@ -36,6 +36,7 @@ from geometry_msgs.msg import Twist
 from geometry_msgs.msg import TwistStamped
 from nav_msgs.msg import Odometry
 from nav_msgs.msg import Path
+from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.serialization import deserialize_message
 from sim_diffdrive.angles import yaw_from_quaternion
 from sim_diffdrive.cdr import read_twist
@@ -69,6 +70,8 @@ class Robot:
         self.name = name
         self.model = sim.fleet.robots[index]
         self._warned_publishers = False
+        # How many publishers' commands reach cmd_vel, as DDS last said (its matched event).
+        self.cmd_publishers = 0
         self._refusals = Throttle(1.0)  # one warning a second per kind of refused command
         prefix = f'{name}/' if name else ''
         self.label = f'{name}: ' if name else ''
@@ -78,9 +81,12 @@ class Robot:
         self.odom_pub = sim.create_publisher(Odometry, prefix + 'odom', 10)
         self.path_pub = sim.create_publisher(Path, prefix + 'path', 1)
         self.cmd_type = TwistStamped if p.stamped else Twist
-        sub = sim.create_subscription(self.cmd_type, prefix + 'cmd_vel',
-                                      self.on_stamped if p.stamped else self.on_twist,
-                                      CMD_VEL_DEPTH, raw=True)
+        # DDS says when a publisher on cmd_vel comes or goes (matched), so a second one is
+        # warned about at once, with no graph query per robot per step or second.
+        sub = sim.create_subscription(
+            self.cmd_type, prefix + 'cmd_vel', self.on_stamped if p.stamped else self.on_twist,
+            CMD_VEL_DEPTH, raw=True,
+            event_callbacks=SubscriptionEventCallbacks(matched=self._on_publishers_matched))
         self.cmd_topic = sub.topic_name
         sim.create_subscription(PoseWithCovarianceStamped, prefix + 'initialpose',
                                 self.on_initial_pose, 10)
@@ -199,9 +205,9 @@ class Robot:
         fleet.command(self.index, linear, angular, now_ns)
         sim.clock.command_arrived()
 
-    def check_publishers(self):
-        """Warn once when more than one node publishes on this robot's cmd_vel."""
-        count = self.sim.count_publishers(self.cmd_topic)
+    def _on_publishers_matched(self, info):
+        """Warn once when more than one publisher's commands reach this robot's cmd_vel."""
+        count = self.cmd_publishers = info.current_count
         if count > 1 and not self._warned_publishers:
             self._warned_publishers = True
             self.sim.get_logger().warning(
