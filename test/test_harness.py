@@ -16,6 +16,7 @@
 
 import gc
 import os
+import shutil
 import signal
 import sys
 import time
@@ -215,5 +216,8 @@ def test_a_process_that_does_not_exit_is_killed_with_its_stack_in_its_log(stacks
     if stacks:  # asked for its stack, then killed STACKS_WAIT later
         assert 'in stuck_in_here' in process.output(), process.output()
         assert process.returncode == -signal.SIGKILL
+        if shutil.which('gdb'):  # and its native stacks, where gdb is installed
+            native = process.output().partition('Native stacks (gdb):')[2]
+            assert 'Thread 1' in native and 'sleep' in native, process.output()
     else:  # not a package executable: SIGUSR1 ends it at once
         assert process.returncode == -signal.SIGUSR1

@@ -32,6 +32,8 @@ import weakref
 
 # How long a process that did not exit has to write its stacks before SIGKILL (Process.kill).
 STACKS_WAIT = 0.5
+# How long gdb may take to attach and write a hung process's native stacks.
+GDB_WAIT = 30.0
 
 
 def ros_params(*params, namespace=None, clock=None, sim_time=False):
@@ -135,8 +137,30 @@ class Process:
         try:
             self.popen.wait(STACKS_WAIT)  # a process without the handler dies of SIGUSR1
         except subprocess.TimeoutExpired:
+            self._write_native_stacks()
             self.popen.kill()
             self.popen.wait()
+
+    def _write_native_stacks(self):
+        """
+        Add every thread's native stack to the log, where gdb is installed.
+
+        A hang inside rclpy or DDS shows as one Python frame above native code (a node's
+        destroy_node, say); which lock it waits for, and who holds it, only the native stacks
+        tell.
+        """
+        gdb = shutil.which('gdb')
+        if gdb is None:
+            return
+        try:
+            stacks = subprocess.run(
+                [gdb, '-p', str(self.popen.pid), '-batch', '-nx', '-iex', 'set auto-load off',
+                 '-ex', 'thread apply all bt 30'], capture_output=True, text=True,
+                timeout=GDB_WAIT).stdout
+        except (OSError, subprocess.TimeoutExpired) as error:
+            stacks = f'gdb gave no stacks: {error}\n'
+        with open(self.log_path, 'a') as log:
+            log.write('\nNative stacks (gdb):\n' + stacks)
 
     def describe(self):
         """Return the command line and the output, for an assertion message."""
