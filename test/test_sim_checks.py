@@ -18,9 +18,11 @@ What ``unicycle_sim`` refuses or warns about in its own setup: frames and a seco
 Frame names that tf2 cannot use (one frame for both ends of the odometry, an empty name, a
 name with whitespace or a leading '/') are refused by name, at start (exit 2) and as a live
 set (the frames stay).  A simulator that owns ``/clock`` warns once when another node
-publishes on the same clock topic.  When it goes on without a message a participant sent, it
-says which publishers of that topic its discovery knows (on a lossy link one side can match a
-writer seconds before the other, and what is sent meanwhile never arrives).
+publishes on the same clock topic, and about a publisher on a robot's ``cmd_vel`` that sends
+another message type, which DDS never matches.  When it goes on without a message a
+participant sent, it says which publishers of that topic its discovery knows (on a lossy link
+one side can match a writer seconds before the other, and what is sent meanwhile never
+arrives).
 """
 
 import os
@@ -36,10 +38,13 @@ from rclpy.node import Node
 from rclpy.parameter import get_parameter_value
 from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock as ClockMsg
+from sim_diffdrive.harness import start_python
+from sim_diffdrive.harness import stop
 from sim_diffdrive.lockstep.owner import UNDISCOVERED_TIMEOUTS
 from sim_diffdrive.lockstep.participant import take_part
 from sim_diffdrive.parameters import ParameterError
 import sim_diffdrive.sim.clock as clock_module
+import sim_diffdrive.sim.node as node_module
 from sim_diffdrive.sim.node import UnicycleSim
 
 
@@ -385,3 +390,43 @@ def test_a_message_from_a_sender_that_left_and_is_gone_is_not_waited_for_long(gr
                      forgiven()[0])
     assert held, forgiven()
     assert 1.0 <= float(held.group(1)) < UNDISCOVERED_TIMEOUTS * 1.0
+
+
+# Another process: TwistStamped (Nav2's cmd_vel on Jazzy) published on robot b's cmd_vel, and
+# only subscribed to on robot a's.
+OTHER_TYPE = """
+import sys, time
+import rclpy
+from geometry_msgs.msg import TwistStamped
+rclpy.init()
+node = rclpy.create_node('stamped_teleop')
+node.create_subscription(TwistStamped, '/a/cmd_vel', lambda msg: None, 10)
+node.create_publisher(TwistStamped, '/b/cmd_vel', 10)
+print('ready', flush=True)
+time.sleep(60)
+"""
+
+
+def test_a_publisher_of_another_type_on_a_robots_cmd_vel_is_named_once(
+        graph, capfd, monkeypatch):
+    monkeypatch.setattr(node_module, 'TYPE_CHECK_S', 0.2)
+    graph.sim(robots=['a', 'b'])
+    log = []
+
+    def warnings():
+        log.append(capfd.readouterr().err)
+        return [line for line in ''.join(log).splitlines() if 'never arrive' in line]
+    other = start_python(OTHER_TYPE)
+    try:
+        deadline = time.monotonic() + 15.0
+        while not warnings() and time.monotonic() < deadline:
+            graph.step()
+            graph.spin_for(0.05)
+        for _ in range(10):  # 0.5 s more, the graph looked at again: no second warning
+            graph.step()
+            graph.spin_for(0.05)
+    finally:
+        stop(other)
+    assert len(warnings()) == 1, log
+    assert ('b: A publisher on /b/cmd_vel sends geometry_msgs/msg/TwistStamped, but this '
+            'simulator takes geometry_msgs/msg/Twist (stamped:=true takes it)') in warnings()[0]

@@ -26,6 +26,7 @@ than the wall clock, and publishes it on ``/clock`` for nodes that run with ``us
 """
 
 import re
+import time
 
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
@@ -48,6 +49,9 @@ from sim_diffdrive.taps import TAP_PARAMETERS
 from std_srvs.srv import Empty
 
 _NS = 1_000_000_000
+# How often the graph is asked whether a publisher on a robot's cmd_vel sends another message
+# type than the robot takes (its commands never arrive) [wall s].
+TYPE_CHECK_S = 2.0
 _POSITION_LIMIT = 1e6
 # A robot name: relative ROS name tokens (robot1, team_a/robot1).
 _ROBOT_NAME = re.compile(r'[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)*')
@@ -172,6 +176,7 @@ class UnicycleSim(Node):
         self._tf = OdomTransform(self, self._frames()) if p.publish_tf else None
         self._path_every = max(1, round(p.rate_hz / p.path_rate_hz))
         self._odom_count = 0
+        self._types_checked_at = -TYPE_CHECK_S  # (monotonic time) the first step looks
         self.create_service(Empty, '~/reset', self._on_reset)
         self.clock.start()
         where = (f"{len(names)} robots ({', '.join(names)})" if p.robots else
@@ -308,6 +313,21 @@ class UnicycleSim(Node):
             for robot, *pose in zip(robots, *poses):
                 robot.record_path(stamp, stamp_ns, *pose)
         self._odom_count += 1
+        if time.monotonic() - self._types_checked_at >= TYPE_CHECK_S:
+            self._check_command_types()
+
+    def _check_command_types(self):
+        """
+        Warn about a publisher on a robot's cmd_vel that sends another type than it takes.
+
+        DDS never matches such a publisher (Nav2 on Jazzy sends TwistStamped, say), so nothing
+        of it arrives and no event says so: one look at the whole graph's topics and types
+        (about 5 ms with 1024 robots), and a closer one only where a topic has another type.
+        """
+        self._types_checked_at = time.monotonic()
+        types = dict(self.get_topic_names_and_types())
+        for robot in self.robots:
+            robot.check_command_type(types.get(robot.cmd_topic, ()))
 
     def shutdown_hook(self):
         """Close what the taps write (an MCAP file gets its index), whatever ended the run."""

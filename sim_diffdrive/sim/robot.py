@@ -70,6 +70,7 @@ class Robot:
         self.name = name
         self.model = sim.fleet.robots[index]
         self._warned_publishers = False
+        self._warned_type = False
         # How many publishers' commands reach cmd_vel, as DDS last said (its matched event).
         self.cmd_publishers = 0
         self._refusals = Throttle(1.0)  # one warning a second per kind of refused command
@@ -204,6 +205,25 @@ class Robot:
         fleet.advance_robot_to(self.index, now_ns)
         fleet.command(self.index, linear, angular, now_ns)
         sim.clock.command_arrived()
+
+    def check_command_type(self, types):
+        """Warn once while a publisher on cmd_vel sends another type (types: the topic's)."""
+        ours = f'geometry_msgs/msg/{self.cmd_type.__name__}'
+        others = [name for name in types if name != ours]
+        if others:  # the types of its subscribers show there too: which publish?
+            others = sorted({info.topic_type for info in self.sim.get_publishers_info_by_topic(
+                self.cmd_topic)} - {ours})
+        if others and not self._warned_type:
+            self._warned_type = True
+            stamped = {'geometry_msgs/msg/Twist': 'false',
+                       'geometry_msgs/msg/TwistStamped': 'true'}
+            hint = (f' (stamped:={stamped[others[0]]} takes it)'
+                    if len(others) == 1 and others[0] in stamped else '')
+            self.sim.get_logger().warning(
+                f'{self.label}A publisher on {self.cmd_topic} sends {", ".join(others)}, but this '
+                f'simulator takes {ours}{hint}: its commands never arrive')
+        elif not others:
+            self._warned_type = False
 
     def _on_publishers_matched(self, info):
         """Warn once when more than one publisher's commands reach this robot's cmd_vel."""
