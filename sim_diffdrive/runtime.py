@@ -50,6 +50,11 @@ EXIT_USAGE = 2
 
 # Bounds how long a signal waits for Python's handler while the executor sleeps in rcl.
 _SPIN_TIMEOUT = 0.1
+# How long destroying the nodes and shutting rclpy down may take [s] before the process ends
+# anyway, with every thread's stack and exit code 1: deleting its DDS participant, Fast DDS can
+# spin for ever while a discovery callback of a peer's departure is in flight (seen when
+# several nodes exit at once; robustness.md).  Destroying a 1024-robot simulator takes 7 s.
+CLEANUP_TIMEOUT_S = 30.0
 
 
 class _Interrupts:
@@ -185,6 +190,9 @@ def run(make_node, args=None):
             # the garbage collector, it let go of them only as run() returned, after rclpy's
             # shutdown: once a motion whose simulator had been killed died there (SIGSEGV in
             # a QoS event handler's __exit__; rclpy issue 1644 is of the same family).
+            # The watchdog is faulthandler's own thread: it needs no GIL, which the spinning
+            # call holds, so no Python code would run.
+            faulthandler.dump_traceback_later(CLEANUP_TIMEOUT_S, exit=True)
             if executor is not None:
                 _shut_down(executor, logger)
             for node in nodes:
@@ -192,6 +200,7 @@ def run(make_node, args=None):
                     exit_code = EXIT_FAILED
         finally:
             rclpy.try_shutdown()
+            faulthandler.cancel_dump_traceback_later()
     return exit_code
 
 

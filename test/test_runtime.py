@@ -26,6 +26,8 @@ from geometry_msgs.msg import Twist
 import pytest
 import rclpy
 from rclpy.node import Node
+from sim_diffdrive.harness import kill_all
+from sim_diffdrive.harness import start_python
 from sim_diffdrive.runtime import destroyed_if_refused
 from sim_diffdrive.runtime import EXIT_FAILED
 from sim_diffdrive.runtime import EXIT_OK
@@ -271,3 +273,40 @@ def test_what_was_built_before_the_spin_is_left_out_of_garbage_collection(main_p
 
     assert run(lambda: Looking(), args=[]) == EXIT_OK
     assert seen == [False]
+
+
+# A node whose destruction never ends, as Fast DDS's participant deletion once did.
+STUCK_CLEANUP = """
+import time
+from rclpy.node import Node
+import sim_diffdrive.runtime as runtime
+runtime.CLEANUP_TIMEOUT_S = 0.5
+
+
+class StuckAtExit(Node):
+    done, exit_code = True, 0
+
+    def __init__(self):
+        super().__init__('stuck_at_exit')
+
+    def shutdown_hook(self):
+        print('final stop sent', flush=True)
+
+    def destroy_node(self):
+        time.sleep(60)
+
+
+raise SystemExit(runtime.run(StuckAtExit, args=[]))
+"""
+
+
+def test_a_cleanup_that_never_ends_ends_the_process_with_its_stack_after_the_final_stop():
+    process = start_python(STUCK_CLEANUP)
+    try:
+        code = process.wait(20.0)
+    finally:
+        kill_all([process], grace=0.0)
+    output = process.output()
+    assert code == EXIT_FAILED, output
+    assert 'final stop sent' in output
+    assert 'Timeout (0:00:00.500000)!' in output and 'in destroy_node' in output, output
