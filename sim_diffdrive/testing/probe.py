@@ -62,7 +62,12 @@ def is_moving(odom):
 
 def stamp_s(msg):
     """Return a stamped message's header time in seconds."""
-    return msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+    return _seconds(msg.header.stamp.sec, msg.header.stamp.nanosec)
+
+
+def _seconds(sec, nanosec):
+    # One formula for a stamp read from a message and one read from its bytes: equal floats.
+    return sec + nanosec * 1e-9
 
 
 def angle_error(a, b):
@@ -159,8 +164,7 @@ class Probe(Node):
         """Return the latest odometry's stamp [s] (sec + nanosec * 1e-9), or None."""
         if not self.odoms:
             return None
-        sec, nanosec = divmod(self.odoms.stamp_ns(-1), _NS)
-        return sec + nanosec * 1e-9
+        return _seconds(*divmod(self.odoms.stamp_ns(-1), _NS))
 
     def send(self, linear=0.0, angular=0.0):
         self.cmd_pub.publish(twist(linear, angular))
