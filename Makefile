@@ -13,16 +13,17 @@ STAMP := $(VENV)/.installed
 
 # The Jazzy builds of the ROS wheels (the lower of the two versions PyPI lists for each).
 ROS_WHEELS := ros-rclpy==7.1.6 ros-geometry-msgs==5.3.6 ros-nav-msgs==5.3.6 \
-	ros-std-srvs==5.3.6 ros-rosgraph-msgs==2.0.3 ros-rmw-fastrtps-cpp==8.4.3 \
+	ros-std-srvs==5.3.6 ros-sensor-msgs==5.3.6 ros-rosgraph-msgs==2.0.3 ros-rmw-fastrtps-cpp==8.4.3 \
 	ros-ament-index-python==1.8.1
 # The linters' own dependencies come with ament_flake8/ament_pep257 from apt, not with the wheels:
 # these are the versions Ubuntu 24.04 (Jazzy's platform) ships.
 ROS_TEST_WHEELS := ros-ament-flake8==0.17.3 ros-ament-pep257==0.17.3 \
 	flake8==7.0.0 flake8-builtins==2.1.0 flake8-comprehensions==3.14.0 \
 	flake8-docstrings==1.7.0 flake8-import-order==0.19.2 flake8-quotes==3.3.2 pydocstyle==6.3.0
+# pillow: map_server's PGM/PNG map images (map_file).
 # rerun-sdk: view_port's browser view (its wheel carries the rerun program and the web viewer);
 # playwright drives the system's Chromium in test_view.py (no browser download).
-PY_DEPS := numpy pytest pytest-xdist hypothesis colcon-common-extensions matplotlib import-linter \
+PY_DEPS := numpy pillow pytest pytest-xdist hypothesis colcon-common-extensions matplotlib import-linter \
 	mcap mcap-ros2-support foxglove-sdk websockets rerun-sdk==0.41.0 playwright==1.65.2
 
 .PHONY: venv test demo bench stress lint clean

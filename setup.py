@@ -29,6 +29,7 @@ setup(
         ('share/' + package_name, ['package.xml', 'README.md']),
         ('share/' + package_name + '/config', glob('config/*.yaml')),
         ('share/' + package_name + '/launch', glob('launch/*.launch.py')),
+        ('share/' + package_name + '/maps', glob('maps/*.yaml') + glob('maps/*.pgm')),
         ('share/' + package_name + '/rviz', glob('rviz/*.rviz')),
     ],
     # rclpy and the message packages come from ROS 2 (apt's /opt/ros/jazzy or the ros-* wheels

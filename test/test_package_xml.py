@@ -38,6 +38,7 @@ INSTALLED = ('motion_challenges', 'sim_diffdrive')
 ROSDEP_KEYS = {
     'matplotlib': 'python3-matplotlib',
     'numpy': 'python3-numpy',
+    'PIL': 'python3-pil',
     'pytest': 'python3-pytest',
     'yaml': 'python3-yaml',
 }
