@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import math
 
 from sim_diffdrive.angles import normalize_angle
-from sim_diffdrive.sim.kinematics import integrate
+from sim_diffdrive.kinematics import integrate
 
 # ROS time has nanosecond resolution, so a time within 1 ns of a segment boundary is on it.
 # Snapping there keeps float noise (15 * 0.1 != 1.5) from producing a sliver of a segment.

@@ -33,7 +33,7 @@ from motion_challenges.plans import speed_ramp
 import pytest
 from sim_diffdrive.angles import normalize_angle
 from sim_diffdrive.angles import YawAccumulator
-from sim_diffdrive.sim.kinematics import integrate
+from sim_diffdrive.kinematics import integrate
 
 NS = 1_000_000_000
 MS = 1_000_000

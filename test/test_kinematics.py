@@ -23,11 +23,11 @@ from sim_diffdrive.angles import normalize_angle
 from sim_diffdrive.angles import quaternion_from_yaw
 from sim_diffdrive.angles import yaw_from_quaternion
 from sim_diffdrive.angles import YawAccumulator
-from sim_diffdrive.sim.kinematics import _sinc
-from sim_diffdrive.sim.kinematics import integrate
-from sim_diffdrive.sim.kinematics import limit_command
-from sim_diffdrive.sim.kinematics import SMALL_ANGLE
-from sim_diffdrive.sim.kinematics import UnicycleModel
+from sim_diffdrive.kinematics import _sinc
+from sim_diffdrive.kinematics import integrate
+from sim_diffdrive.kinematics import limit_command
+from sim_diffdrive.kinematics import SMALL_ANGLE
+from sim_diffdrive.kinematics import UnicycleModel
 
 TWO_PI = 2.0 * math.pi
 

@@ -178,7 +178,7 @@ def test_reset_puts_every_robot_back_at_its_initial_pose(graph):
     graph.step_for(0.1)
     assert graph.pose('one') == (1.0, 2.0, 0.5)
     assert graph.pose('two') == pytest.approx((-1.0, 0.0, 3.0), abs=1e-15)
-    assert sim.fleet.moving().tolist() == [False, False]
+    assert sim.world.moving().tolist() == [False, False]
 
 
 def test_one_tf_message_carries_every_robots_transform(graph):

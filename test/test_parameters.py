@@ -245,5 +245,5 @@ def test_simulator_accepts_integers_for_floats(make_node):
     sim = make_node(('rate_hz', 20), ('initial_x', 1), node_class=UnicycleSim)
     assert sim.params.rate_hz == 20.0
     assert sim.get_parameter('rate_hz').type_ == Parameter.Type.DOUBLE
-    assert (sim.model.x, sim.model.y) == (1.0, 0.0)
+    assert (sim.world.x[0], sim.world.y[0]) == (1.0, 0.0)
     assert sim.describe_parameter('rate_hz').description.startswith('Odometry publish rate')

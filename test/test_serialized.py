@@ -243,7 +243,7 @@ def namespaced_sim(graph, namespace, **params):
 
 
 def assert_heard_is_the_simulators_state(sim, listeners, frames, diagonals):
-    fleet = sim.fleet
+    fleet = sim.world
     stamp_ns = sim.now_ns()
     covariances = tuple(covariance(d) for d in diagonals)
     for i, (listener, pair) in enumerate(zip(listeners, frames)):
@@ -296,7 +296,7 @@ def test_a_command_in_another_encapsulation_is_followed_and_garbage_refused(grap
     graph.wait_for_discovery()
     driver.send(0.2, 0.1)
     graph.step(2)
-    assert (sim.fleet.linear[0], sim.fleet.angular[0]) == (0.2, 0.1)
+    assert (sim.world.linear[0], sim.world.angular[0]) == (0.2, 0.1)
 
     # XCDR2 (encapsulation 00 07): the reader does not know it, rclpy decodes it.
     msg = Twist()
@@ -305,12 +305,12 @@ def test_a_command_in_another_encapsulation_is_followed_and_garbage_refused(grap
     data[1] = 7
     driver.cmd_pub.publish(bytes(data))
     graph.step(2)
-    assert (sim.fleet.linear[0], sim.fleet.angular[0]) == (0.4, -0.3)
+    assert (sim.world.linear[0], sim.world.angular[0]) == (0.4, -0.3)
 
     # Too short to hold a Twist: refused, the robot keeps its last command.
     driver.cmd_pub.publish(serialize_message(msg)[:20])
     graph.step(2)
-    assert (sim.fleet.linear[0], sim.fleet.angular[0]) == (0.4, -0.3)
+    assert (sim.world.linear[0], sim.world.angular[0]) == (0.4, -0.3)
     assert graph.odom().twist.twist.linear.x == 0.4
     assert 'Refusing cmd_vel that does not decode as Twist' in capfd.readouterr().err
 

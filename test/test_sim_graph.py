@@ -406,11 +406,10 @@ class ExternalClock:
 
     def send_at(self, t_ns, v, w):
         self.set_time(t_ns)
-        model = self.sim.model
-        received = model.target_linear, model.target_angular
+        world = self.sim.world
+        received = world.commanded[0]
         self.probe.send(v, w)
-        assert self.graph.spin_until(
-            lambda: (model.target_linear, model.target_angular) != received, poll=0.001)
+        assert self.graph.spin_until(lambda: world.commanded[0] != received, poll=0.001)
 
     def odom_at(self, t_ns):
         self.set_time(t_ns)

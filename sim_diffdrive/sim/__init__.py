@@ -13,8 +13,9 @@
 # limitations under the License.
 
 """
-The simulator: its node, its robots, the fleet that owns their state, exact kinematics.
+The simulator: its node, its robots, the pure world that owns their state.
 
-The ``unicycle_sim`` node (node.py) and its clock modes, each robot's topics (robot.py), the
-fleet's arrays (fleet.py) and the unicycle model (kinematics.py).
+The ``unicycle_sim`` node (node.py) and its clock modes (clock.py), each robot's topics
+(robot.py), the map, scans and map -> odom on the ROS side (surroundings.py), and the world
+(world.py) that owns every robot's state and steps it (no ROS).
 """

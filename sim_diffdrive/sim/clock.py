@@ -127,8 +127,7 @@ class FollowedClock:
 
     def _step(self, now_ns):
         self._stepped_ns = now_ns
-        self.sim.advance_all(now_ns)
-        self.sim.publish_odom()
+        self.sim.step_to(now_ns)
 
 
 class OwnedClock:
@@ -151,7 +150,7 @@ class OwnedClock:
         self._warned_owners = False
 
     def start(self):
-        self.sim.fleet.integrated_ns[:] = 0
+        self.sim.world.begin(0)
         self.publish()
 
     def now_ns(self):
@@ -164,10 +163,9 @@ class OwnedClock:
         """Advance simulated time by one step and publish odometry and then /clock."""
         self.before_step(self.sim_ns + self.sim.step_ns)
         self.sim_ns += self.sim.step_ns
-        self.sim.advance_all(self.sim_ns)
         # Odometry first: a participant that gets it before the /clock of its step waits for
         # that /clock to answer, so one answer a step covers both (participant.py).
-        self.sim.publish_odom()
+        self.sim.step_to(self.sim_ns)
         self.publish()
         self.wall = time.monotonic()
         if self.wall - self._owners_checked >= _OWNERS_CHECK_S:

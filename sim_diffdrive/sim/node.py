@@ -18,8 +18,9 @@ The ``unicycle_sim`` node: Twist in on ``cmd_vel``, Odometry out on ``odom``; on
 The pose is integrated exactly and piecewise: brought up to the moment each command arrives
 before the command takes effect, so accuracy does not depend on ``rate_hz``.  With ``robots``
 each named robot has its own topics and frames under ``<name>/`` (robot.py), and every step
-moves all robots at once with numpy (fleet.py, which owns every robot's state),
-bit-identical to one robot alone.  With ``publish_clock`` the node owns time: it steps a
+moves all robots at once (world.py, the pure world that owns every robot's state),
+bit-identical to one robot alone; with ``map_file`` they drive in a map, with walls, a laser
+scan and map -> odom (surroundings.py).  With ``publish_clock`` the node owns time: it steps a
 simulated clock by 1/``rate_hz`` seconds per step, up to ``real_time_factor`` times faster
 than the wall clock, and publishes it on ``/clock`` for nodes that run with ``use_sim_time``
 (clock.py holds the four ways of keeping time).
@@ -39,11 +40,15 @@ from sim_diffdrive.parameters import Spec
 from sim_diffdrive.runtime import destroyed_if_refused
 from sim_diffdrive.runtime import run
 from sim_diffdrive.sim.clock import make_clock
-from sim_diffdrive.sim.fleet import Fleet
 from sim_diffdrive.sim.odom_tf import check_frames
 from sim_diffdrive.sim.odom_tf import DEFAULT_FRAMES
 from sim_diffdrive.sim.odom_tf import OdomTransform
 from sim_diffdrive.sim.robot import Robot
+from sim_diffdrive.sim.surroundings import open_surroundings
+from sim_diffdrive.sim.surroundings import WORLD_PARAMETERS
+from sim_diffdrive.sim.world import LIMITS
+from sim_diffdrive.sim.world import PlacementError
+from sim_diffdrive.sim.world import World
 from sim_diffdrive.taps import open_taps
 from sim_diffdrive.taps import TAP_PARAMETERS
 from std_srvs.srv import Empty
@@ -113,7 +118,7 @@ PARAMETERS = (
     Spec('initial_poses', [], 'Start poses as x, y, yaw [m, m, rad] per robot, one after the '
          'other; empty: every robot at initial_x, initial_y, initial_yaw.',
          low=-_POSITION_LIMIT, high=_POSITION_LIMIT),
-) + TAP_PARAMETERS
+) + WORLD_PARAMETERS + TAP_PARAMETERS
 
 
 def robot_names(robots):
@@ -159,11 +164,17 @@ class UnicycleSim(Node):
             raise ParameterError(
                 f"parameter 'initial_poses' must hold x, y, yaw for each of the {len(names)} "
                 f'robot(s), {3 * len(names)} values; got {len(p.initial_poses)}')
-        self.fleet = Fleet(
-            self._initial_poses(len(names)), names=names,
-            timeout_ns=round(p.cmd_vel_timeout * _NS), on_timeout=self._on_timeout,
-            max_linear_speed=p.max_linear_speed, max_angular_speed=p.max_angular_speed,
-            max_linear_accel=p.max_linear_accel, max_angular_accel=p.max_angular_accel)
+        # The map, its walls and the scan (nothing without map_file): see surroundings.py.
+        self.surroundings = open_surroundings(self, names)
+        try:
+            self.world = World(
+                self._initial_poses(len(names)), names=names,
+                timeout_ns=round(p.cmd_vel_timeout * _NS),
+                limits={name: getattr(p, name) for name in LIMITS},
+                walls=self.surroundings.walls if self.surroundings else None)
+        except PlacementError as error:
+            raise ParameterError(f'Cannot start: {error} (initial_x, initial_y, initial_poses '
+                                 'or map_file)') from None
         self.step_ns = round(_NS / p.rate_hz)
         self.clock = make_clock(self, stepped)
         # Where else the simulator's traffic goes (an MCAP file, Foxglove): see taps/.
@@ -178,6 +189,8 @@ class UnicycleSim(Node):
         self._odom_count = 0
         self._types_checked_at = -TYPE_CHECK_S  # (monotonic time) the first step looks
         self.create_service(Empty, '~/reset', self._on_reset)
+        if self.surroundings:
+            self.surroundings.start(self._frames(), self.now_ns())
         self.clock.start()
         where = (f"{len(names)} robots ({', '.join(names)})" if p.robots else
                  f'Unicycle at ({p.initial_x:.3f}, {p.initial_y:.3f}, {p.initial_yaw:.3f} rad)')
@@ -186,11 +199,6 @@ class UnicycleSim(Node):
             + (f', publishing /clock at up to {p.real_time_factor:g}x real time'
                + (' in lockstep' if p.lockstep else ' (free clock)')
                if p.publish_clock else ''))
-
-    @property
-    def model(self):
-        """Return the first robot's UnicycleModel (the only one without ``robots``)."""
-        return self.fleet.robots[0]
 
     def _initial_poses(self, count):
         p = self.params
@@ -205,16 +213,33 @@ class UnicycleSim(Node):
         """Return the current simulated time in nanoseconds."""
         return self.clock.now_ns()
 
-    def advance_all(self, now_ns):
-        """Integrate every robot up to now_ns."""
-        self.fleet.advance_to(now_ns)
+    def step_to(self, now_ns):
+        """Bring every robot up to now_ns and publish what the world says (a clock's step)."""
+        self.world.step_to(now_ns)
+        self.publish_odom()
 
-    def _on_timeout(self, index, last_ns):
-        # When the last command came, on the node's clock: from the outside only the sender's
-        # time is known, and a busy machine can hand the command over later.
-        self.get_logger().warning(
-            f'{self.robots[index].label}No cmd_vel for {self.params.cmd_vel_timeout:g} s: '
-            f'stopping the robot (the last came at {last_ns // _NS}.{last_ns % _NS:09d} s)')
+    def advance_all(self, now_ns):
+        """Integrate every robot up to now_ns (before something changes: a parameter, a pose)."""
+        self.world.step_to(now_ns)
+
+    def _log_events(self):
+        """Say what happened in the world since the last look: timeouts, contacts."""
+        logger = self.get_logger()
+        for kind, i, data in self.world.take_events():
+            label = self.robots[i].label
+            if kind == 'timeout':
+                # When the last command came, on the node's clock: from the outside only the
+                # sender's time is known, and a busy machine can hand it over later.
+                logger.warning(
+                    f'{label}No cmd_vel for {self.params.cmd_vel_timeout:g} s: stopping the '
+                    f'robot (the last came at {data // _NS}.{data % _NS:09d} s)')
+            elif kind == 'wall':
+                logger.warning(f'{label}Hit a wall at ({data[0]:.3f}, {data[1]:.3f}) in '
+                               f'{self.surroundings.map_frame}: stopped')
+            else:
+                other = self.robots[data[0]].name or 'another robot'
+                logger.warning(f'{label}Ran into {other} at ({data[1]:.3f}, {data[2]:.3f}) in '
+                               f'{self.surroundings.map_frame}: stopped')
 
     # -- parameters and reset ---------------------------------------------------------------
 
@@ -223,11 +248,10 @@ class UnicycleSim(Node):
         self.advance_all(self.now_ns())  # up to now, the old value held
         robots = self.robots
         if name == 'cmd_vel_timeout':
-            self.fleet.set_timeout(round(value * _NS))
-        elif name in ('max_linear_speed', 'max_angular_speed', 'max_linear_accel',
-                      'max_angular_accel'):
-            for robot in robots:
-                robot.model.set_limit(name, value)
+            self.world.set_timeout(round(value * _NS))
+        elif name in LIMITS:
+            for i in range(len(robots)):
+                self.world.set_limit(i, name, value)
         elif name in ('pose_covariance_diagonal', 'twist_covariance_diagonal'):
             self._odometry = self._odometry_layout()
         elif name in ('odom_frame_id', 'base_frame_id'):
@@ -236,6 +260,8 @@ class UnicycleSim(Node):
             self._odometry = self._odometry_layout()
             if self._tf is not None:
                 self._tf.set_frames(self._frames())
+            if self.surroundings:
+                self.surroundings.set_frames(self._frames())
         elif name == 'real_time_factor':
             self.clock.set_real_time_factor(value)
         elif name == 'path_length':
@@ -267,7 +293,11 @@ class UnicycleSim(Node):
     def _on_reset(self, request, response):
         self.advance_all(self.now_ns())
         for robot, pose in zip(self.robots, self._initial_poses(len(self.robots))):
-            robot.reset(*pose)
+            try:
+                robot.reset(*pose)
+            except PlacementError as error:
+                self.get_logger().warning(f'Refusing ~/reset: {error}; the robot stays where '
+                                          'it is')
         self.get_logger().info(
             'Reset every robot to its initial pose' if self.params.robots
             else 'Reset to the initial pose')
@@ -287,10 +317,10 @@ class UnicycleSim(Node):
 
     def publish_odom(self):
         """Publish every robot's odometry (and one /tf message with all of them)."""
-        fleet = self.fleet
-        stamp_ns, x, y, qz, qw, linear, angular = fleet.odometry()
+        world = self.world
+        stamp_ns, x, y, qz, qw, linear, angular = world.odometry()
         sec, nanosec = divmod(stamp_ns, _NS)
-        each = fleet.one_by_one  # floats, written robot by robot; else arrays
+        each = world.one_by_one  # floats, written robot by robot; else arrays
         layout = self._odometry
         odometry = (layout.serialize_each if each else layout.serialize)(
             sec, nanosec, x, y, qz, qw, linear, angular)
@@ -305,8 +335,12 @@ class UnicycleSim(Node):
             data = self._tf.publish(sec, nanosec, x, y, qz, qw, each)
             if taps:
                 taps.write(self._tf.publisher.topic_name, data, stamp_ns)
+        if self.surroundings:
+            self.surroundings.publish(stamp_ns, world, taps)
+        if world.events:
+            self._log_events()
         if taps:
-            taps.step(stamp_ns, fleet)
+            taps.step(stamp_ns, world)
         if self._odom_count % self._path_every == 0:
             stamp = Time(nanoseconds=stamp_ns).to_msg()
             poses = (x, y, qz, qw) if each else (v.tolist() for v in (x, y, qz, qw))

@@ -15,12 +15,12 @@
 """
 One robot of ``unicycle_sim``: its topics, frames, messages and warnings.
 
-The simulator (node.py) keeps time; the fleet (fleet.py) holds every robot's state and steps
+The simulator (node.py) keeps time; the world (world.py) holds every robot's state and steps
 them all at once.  A Robot is what is each robot's own on the ROS side, as a turtle is in
 turtlesim: ``cmd_vel`` in, ``odom`` and ``path`` out (under ``<name>/`` when the simulator has
 ``robots``), frames ``<name>/odom`` -> ``<name>/base_footprint``, and ``initialpose`` (RViz's
 "2D Pose Estimate") to set the robot down somewhere, at rest.  A command is checked here
-and handed to the fleet at the moment it arrives (the robot integrated up to then first), so
+and handed to the world at the moment it arrives (the robot integrated up to then first), so
 it takes effect then, whatever the step.  Commands arrive as their CDR bytes (a raw
 subscription) and are read where their fields lie (cdr.py); odometry leaves as bytes that the
 simulator writes for every robot at once (node.py, cdr.OdometryLayout).
@@ -43,6 +43,7 @@ from sim_diffdrive.cdr import read_twist
 from sim_diffdrive.cdr import read_twist_stamped
 from sim_diffdrive.cdr import UnsupportedEncoding
 from sim_diffdrive.sim.odom_tf import published_frame
+from sim_diffdrive.sim.world import PlacementError
 from sim_diffdrive.throttle import Throttle
 
 _NS = 1_000_000_000
@@ -59,16 +60,15 @@ class Robot:
     """
     Robot number ``index`` of the simulator ``sim``: its topics and messages.
 
-    ``name`` is '' for the simulator's one robot in its own namespace.  Its state is row
-    ``index`` of ``sim.fleet``; ``model`` is that row as a UnicycleModel.
+    ``name`` is '' for the simulator's one robot in its own namespace.  Its state is robot
+    ``index`` of ``sim.world``.
     """
 
     def __init__(self, sim, index, name):
         self.sim = sim
-        self.fleet = sim.fleet
+        self.world = sim.world
         self.index = index
         self.name = name
-        self.model = sim.fleet.robots[index]
         self._warned_publishers = False
         self._warned_type = False
         # How many publishers' commands reach cmd_vel, as DDS last said (its matched event).
@@ -103,34 +103,43 @@ class Robot:
 
     def reset(self, x, y, yaw):
         """Put the robot back at (x, y, yaw), at rest; forget commands and the driven path."""
-        self.fleet.reset(self.index, x, y, yaw)
+        self.world.place(self.index, x, y, yaw)
         self.path.clear()
 
     def on_initial_pose(self, msg):
-        """Set the robot down at the pose given (in its odometry frame), at rest."""
+        """Set the robot down at the pose given (in its odometry frame or the map), at rest."""
         sim = self.sim
         frame = self.odom_frame
+        map_frame = sim.surroundings.map_frame if sim.surroundings else None
         given = msg.header.frame_id.lstrip('/')
         p = msg.pose.pose
         values = (p.position.x, p.position.y, p.orientation.x, p.orientation.y,
                   p.orientation.z, p.orientation.w)
-        if given != frame:
-            why = f"is in frame '{given}', not in the odometry frame '{frame}'"
+        if given not in (frame, map_frame):
+            why = f"is in frame '{given}', not in the odometry frame '{frame}'" + (
+                f" or the map frame '{map_frame}'" if map_frame else '')
         elif not all(math.isfinite(v) for v in values) or max(map(abs, values[:2])) > 1e6:
             why = 'holds a non-finite or absurd value'
         elif not any(values[2:]):
             why = 'has a zero quaternion'
         else:
             why = None
+        yaw = yaw_from_quaternion(*values[2:]) if why is None else 0.0
+        if why is None:
+            sim.advance_all(sim.now_ns())
+            try:
+                if given == frame:
+                    self.reset(p.position.x, p.position.y, yaw)
+                else:  # in the map: odometry goes on where it was, map -> odom moves
+                    self.world.place_in_map(self.index, p.position.x, p.position.y, yaw)
+            except PlacementError as error:
+                why = f'would put it where it cannot be: {error}'
         if why is not None:
             sim.get_logger().warning(f'{self.label}Refusing initialpose: it {why}; the robot '
                                      'stays where it is')
             return
-        yaw = yaw_from_quaternion(*values[2:])
-        sim.advance_all(sim.now_ns())
-        self.reset(p.position.x, p.position.y, yaw)
         sim.get_logger().info(f'{self.label}Set to ({p.position.x:.3f}, {p.position.y:.3f}, '
-                              f'{yaw:.3f} rad) in {frame} by initialpose, at rest')
+                              f'{yaw:.3f} rad) in {given} by initialpose, at rest')
         sim.publish_odom()
 
     # -- commands ---------------------------------------------------------------------------
@@ -197,13 +206,11 @@ class Robot:
                     'the last command')
             return
         now_ns = sim.now_ns()
-        fleet = self.fleet
         if sim.clock.participant is not None and stamp_ns is not None and stamp_ns > now_ns:
             # Sent for a clock step that is on its way to us: take effect then, not now.
-            fleet.hold(self.index, stamp_ns, linear, angular)
+            self.world.hold(self.index, stamp_ns, linear, angular)
             return
-        fleet.advance_robot_to(self.index, now_ns)
-        fleet.command(self.index, linear, angular, now_ns)
+        self.world.command(self.index, linear, angular, now_ns)
         sim.clock.command_arrived()
 
     def check_command_type(self, types):

@@ -20,8 +20,8 @@ it even when nobody subscribes on DDS), ``write(topic, msg, stamp_ns)`` — call
 command the simulator hears and every odometry, /tf, /clock and path message it publishes,
 as a message or as its CDR bytes (commands, odometry and /tf: the bytes that crossed DDS,
 of the type msg_definitions.message_class finds) — ``close()``, and optionally
-``step(stamp_ns, fleet)``, called
-once per odometry publish with the whole fleet (sim/fleet.py: numpy arrays ``x``, ``y``,
+``step(stamp_ns, world)``, called
+once per odometry publish with the whole world (sim/world.py: numpy arrays ``x``, ``y``,
 ``yaw``, ``linear``, ``angular``, ``target_linear``, ``target_angular`` and the list
 ``names``), for a tap that draws every robot at once.  Each needs an optional package (mcap,
 foxglove-sdk, rerun-sdk): when it is missing, or a file or port cannot be had, the simulator
@@ -81,11 +81,11 @@ class Taps:
             self._taps.remove(tap)
             self._close(tap)
 
-    def step(self, stamp_ns, fleet):
-        """Hand every tap that draws the whole fleet its state at stamp_ns."""
+    def step(self, stamp_ns, world):
+        """Hand every tap that draws the whole world its state at stamp_ns."""
         for tap in list(self._taps):
             if hasattr(tap, 'step'):
-                self._call(tap, tap.step, stamp_ns, fleet)
+                self._call(tap, tap.step, stamp_ns, world)
 
     def close(self):
         """Close every tap (idempotent)."""

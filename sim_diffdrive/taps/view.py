@@ -116,12 +116,12 @@ class BrowserView:
             # Simulated time is the one that matters; the wall clock of logging would only
             # show as a second timeline and a "latency" of up to a frame plus the page's load.
             rr.set_log_time_enabled(False, recording=self._rec)
-            self._rec.connect_grpc(self.grpc_url, default_blueprint=_blueprint(node.fleet))
-            self._log_static(node.fleet.names)
+            self._rec.connect_grpc(self.grpc_url, default_blueprint=_blueprint(node.world))
+            self._log_static(node.world.names)
         except BaseException:
             self.close()
             raise
-        self._frames = _Frames(len(node.fleet.names))
+        self._frames = _Frames(len(node.world.names))
         self._thread = threading.Thread(target=self._send_frames, name='browser_view',
                                         daemon=True)
         self._thread.start()

@@ -19,7 +19,8 @@ Test robot code against the simulator: an in-process graph stepped in lockstep.
 ``make stress`` use, and the one the ``sim_graph`` pytest fixture (pytest_plugin.py) gives a
 user to test their own controller: build nodes with ``graph.context``, start a simulator that
 owns the clock with ``graph.sim(**params)``, ``graph.add(node)``, then ``graph.step_for(seconds)``
-or ``graph.step_until(predicate, sim_timeout)`` and read ``graph.pose()``.
+or ``graph.step_until(predicate, sim_timeout)`` and read ``graph.pose()`` (and, with a
+``map_file``, ``graph.scan()``).
 
 Each step advances simulated time by one simulator step and then spins until every message
 sent in the graph has been handled and no node has a timer due, so a controller's answer
@@ -33,7 +34,9 @@ import random
 import rclpy
 from rclpy.context import Context
 from rclpy.experimental import EventsExecutor
+from rclpy.node import Node
 from rclpy.parameter import Parameter
+from sensor_msgs.msg import LaserScan
 from sim_diffdrive.dds_profile import use_package_profile
 from sim_diffdrive.sim.node import UnicycleSim
 from sim_diffdrive.testing.engine import Lockstep
@@ -125,6 +128,7 @@ class SimGraph(Lockstep):
         super().__init__(executor_class(context=context))
         self.context = context
         self._probes = {}  # robot name (None: the one on odom) -> listening Probe
+        self._scans = {}  # robot name -> [the latest LaserScan on its scan, or None]
 
     def __enter__(self):
         return self
@@ -159,6 +163,8 @@ class SimGraph(Lockstep):
         # Listen to odometry from the first message on (each robot's, with robots).
         for robot in params.get('robots') or [None]:
             self._listen(robot)
+            if params.get('map_file'):
+                self._listen_to_scan(robot)
         return sim
 
     def node(self, node_class, namespace=None, **params):
@@ -199,6 +205,21 @@ class SimGraph(Lockstep):
         """Return the latest Odometry message the graph has seen (robot's, if named), or None."""
         return self._listen(robot).odom
 
+    def scan(self, robot=None):
+        """Return the latest LaserScan the graph has seen (robot's, if named), or None."""
+        return self._listen_to_scan(robot)[0]
+
+    def _listen_to_scan(self, robot=None):
+        latest = self._scans.get(robot)
+        if latest is None:
+            latest = self._scans[robot] = [None]
+            node = Node('sim_graph_scan', namespace=robot, context=self.context,
+                        parameter_overrides=_overrides({'use_sim_time': True}))
+            node.create_subscription(LaserScan, 'scan',
+                                     lambda msg: latest.__setitem__(0, msg), 10)
+            self.add(node)
+        return latest
+
     def wait_for_odometry(self, timeout=20.0, process=None):
         """
         Spin (wall time) until odometry arrives, e.g. from a simulator process; return it.
@@ -221,6 +242,7 @@ class SimGraph(Lockstep):
     def close(self):
         super().close()
         self._probes = {}
+        self._scans = {}
         if self._own_context:
             rclpy.try_shutdown(context=self.context)
 

@@ -63,8 +63,8 @@ def lockstep_graph(executor_class=EventsExecutor, namespace=None, **sim_params):
 
 
 def pose(graph):
-    fleet = graph.clock_owner.fleet
-    return float(fleet.x[0]), float(fleet.y[0]), float(fleet.yaw[0])
+    world = graph.clock_owner.world
+    return float(world.x[0]), float(world.y[0]), float(world.yaw[0])
 
 
 def drive(graph, node, rest_steps, begin):

@@ -23,8 +23,8 @@ kinematic model (``ModelRobot``), whose ticks a Probe replays to the simulator n
 import math
 
 import numpy as np
-from sim_diffdrive.sim.kinematics import integrate
-from sim_diffdrive.sim.kinematics import UnicycleModel
+from sim_diffdrive.kinematics import integrate
+from sim_diffdrive.kinematics import UnicycleModel
 
 NS = 1_000_000_000
 ORIGINAL_PI = 3.14

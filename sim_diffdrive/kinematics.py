@@ -17,13 +17,20 @@ Exact unicycle kinematics and command limits for the simulator (no ROS imports).
 
 The pose is advanced along the exact arc a constant (v, w) command drives, as ros2_control's
 diff_drive odometry does, instead of the forward-Euler step of turtlesim or ArbotiX, so
-accuracy does not depend on the step length.
+accuracy does not depend on the step length.  ``integrate`` is the one formula; ``integrate_all``
+is the same operations in the same order on numpy arrays (many robots in one call), equal to it
+bit for bit (test_world.py).  ``arcs`` is the one acceleration ramp, as the arcs it drives.
 """
 
 import math
 
+import numpy as np
 from sim_diffdrive.angles import normalize_angle
 
+_TWO_PI = 2.0 * math.pi
+# Within this |angle| one turn up or down wraps exactly (a - 2 pi is exact for pi <= a <= 4 pi,
+# Sterbenz); beyond it, math.remainder does it.  6 < 3 pi, so at most one turn is needed.
+_ONE_TURN_WRAP = 6.0
 # Below this |x| the series for sin(x)/x is exact to double precision and avoids 0/0.
 SMALL_ANGLE = 1e-4
 
@@ -49,6 +56,32 @@ def integrate(x, y, yaw, linear, angular, dt):
     return x + chord * math.cos(mid), y + chord * math.sin(mid), normalize_angle(yaw + turn)
 
 
+def normalize_angles(angles):
+    """Wrap an array of angles to (-pi, pi], equal element by element to normalize_angle."""
+    wrapped = np.where(angles > math.pi, angles - _TWO_PI,
+                       np.where(angles < -math.pi, angles + _TWO_PI, angles))
+    wrapped[wrapped == -math.pi] = math.pi
+    far = np.flatnonzero(np.abs(angles) > _ONE_TURN_WRAP)
+    for i in far.tolist():
+        wrapped[i] = normalize_angle(float(angles[i]))
+    return wrapped
+
+
+def integrate_all(x, y, yaw, linear, angular, dt):
+    """
+    Advance arrays of poses, each holding its (linear, angular) for dt seconds (see integrate).
+
+    dt is a number or an array.  Returns new arrays (x, y, yaw), yaw wrapped to (-pi, pi].
+    """
+    turn = angular * dt
+    half = 0.5 * turn
+    with np.errstate(invalid='ignore', divide='ignore'):
+        sinc = np.where(np.abs(half) < SMALL_ANGLE, 1.0 - half * half / 6.0, np.sin(half) / half)
+    chord = linear * dt * sinc
+    mid = yaw + 0.5 * turn
+    return x + chord * np.cos(mid), y + chord * np.sin(mid), normalize_angles(yaw + turn)
+
+
 def limit_command(target, current, max_speed, max_accel, dt):
     """
     Apply a speed limit and an acceleration limit to one velocity component.
@@ -64,27 +97,38 @@ def limit_command(target, current, max_speed, max_accel, dt):
     return target
 
 
-def ramp(x, y, yaw, linear, angular, target_linear, target_angular, max_linear_accel,
-         max_angular_accel, ramp_step, dt):
+def arcs(linear, angular, target_linear, target_angular, max_linear_accel, max_angular_accel,
+         ramp_step, dt):
     """
-    Advance a pose for dt seconds while the velocity ramps towards its target.
+    Yield the arcs a robot drives in dt seconds while its velocity ramps towards its target.
 
-    Sub-steps of at most ramp_step seconds, each holding the velocity reached at its middle
-    (second-order accurate), while the velocity differs from the target; the rest of dt in one
-    arc.  Returns the new (x, y, yaw, linear, angular).
+    Each arc is (seconds, linear, angular held over them, linear and angular reached at its
+    end).  While the velocity differs from the target: sub-steps of at most ramp_step seconds,
+    each holding the velocity reached at its middle (second-order accurate); then the rest of
+    dt in one arc.
     """
     while dt > 0.0:
         if linear != target_linear or angular != target_angular:
             step = min(dt, ramp_step)
-            x, y, yaw = integrate(
-                x, y, yaw, limit_command(target_linear, linear, 0.0, max_linear_accel, 0.5 * step),
-                limit_command(target_angular, angular, 0.0, max_angular_accel, 0.5 * step), step)
+            held_linear = limit_command(target_linear, linear, 0.0, max_linear_accel, 0.5 * step)
+            held_angular = limit_command(target_angular, angular, 0.0, max_angular_accel,
+                                         0.5 * step)
             linear = limit_command(target_linear, linear, 0.0, max_linear_accel, step)
             angular = limit_command(target_angular, angular, 0.0, max_angular_accel, step)
+            yield step, held_linear, held_angular, linear, angular
         else:
             step = dt
-            x, y, yaw = integrate(x, y, yaw, linear, angular, step)
+            yield step, linear, angular, linear, angular
         dt -= step
+
+
+def ramp(x, y, yaw, linear, angular, target_linear, target_angular, max_linear_accel,
+         max_angular_accel, ramp_step, dt):
+    """Advance a pose for dt seconds along arcs(); return the new (x, y, yaw, linear, angular)."""
+    for step, held_linear, held_angular, linear, angular in arcs(
+            linear, angular, target_linear, target_angular, max_linear_accel, max_angular_accel,
+            ramp_step, dt):
+        x, y, yaw = integrate(x, y, yaw, held_linear, held_angular, step)
     return x, y, yaw, linear, angular
 
 
@@ -121,7 +165,6 @@ class UnicycleModel:
     def command(self, linear, angular):
         """Set the velocity command; speed limits apply at once, acceleration limits over time."""
         self.commanded = (linear, angular)
-        # Locals, not the attributes read back: a FleetRobot's attributes are array entries.
         target_linear = limit_command(linear, 0.0, self.max_linear_speed, 0.0, 0.0)
         target_angular = limit_command(angular, 0.0, self.max_angular_speed, 0.0, 0.0)
         self.target_linear = target_linear
@@ -146,7 +189,6 @@ class UnicycleModel:
         """Move the robot forward in time by dt seconds."""
         if dt <= 0.0:
             return
-        # The state read once and written once: a FleetRobot's attributes are array entries.
         self.x, self.y, self.yaw, self.linear, self.angular = ramp(
             self.x, self.y, self.yaw, self.linear, self.angular, self.target_linear,
             self.target_angular, self.max_linear_accel, self.max_angular_accel, self.ramp_step,

@@ -1,0 +1,194 @@
+# Copyright 2026 motion_challenges contributors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The world around the robots on the ROS side: the map, the laser scans, map -> odom.
+
+With ``map_file`` (a map_server YAML) the simulator's robots drive in that map, as in Nav2's
+loopback simulator: the map goes out once on ``map`` (nav_msgs/OccupancyGrid, reliable and
+transient local, so a late subscriber gets it, as map_server's), each robot's
+``sensor_msgs/LaserScan`` on ``<robot>/scan`` at ``scan_rate_hz``, stamped at the step it
+shows, ``map_frame_id`` -> each robot's odometry frame on ``/tf`` with its odometry, and each
+robot's base frame -> ``scan_frame_id`` (the scanner at the robot's centre) on ``/tf_static``.
+The geometry is ROS-free (sim_diffdrive/world/): the walls the world stops robots at
+(contact.py) and the scan (scan.py), cast for every robot at once.
+"""
+
+import array
+import math
+
+from geometry_msgs.msg import TransformStamped
+from nav_msgs.msg import OccupancyGrid
+import numpy as np
+from rclpy.qos import DurabilityPolicy
+from rclpy.qos import QoSProfile
+from rclpy.time import Time
+from sensor_msgs.msg import LaserScan
+from sim_diffdrive.cdr import TransformLayout
+from sim_diffdrive.parameters import ParameterError
+from sim_diffdrive.parameters import Spec
+from sim_diffdrive.sim.odom_tf import namespaced_frame
+from sim_diffdrive.sim.odom_tf import resolve_frame
+from sim_diffdrive.sim.odom_tf import TF_QOS
+from sim_diffdrive.sim.odom_tf import TF_TOPIC
+from sim_diffdrive.world.contact import Walls
+from sim_diffdrive.world.grid import load_map
+from sim_diffdrive.world.grid import MapError
+from sim_diffdrive.world.scan import Scanner
+from tf2_msgs.msg import TFMessage
+
+_NS = 1_000_000_000
+# As map_server's map and tf2_ros's StaticTransformBroadcaster: reliable, kept for late comers.
+LATCHED_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+# Reliable: it serves Nav2's best-effort (SensorDataQoS) subscribers as well.
+SCAN_QOS = QoSProfile(depth=10)
+
+WORLD_PARAMETERS = (
+    Spec('map_file', '', 'A map_server YAML (image, resolution, origin, negate, '
+         'occupied_thresh, free_thresh, mode): the robots drive in that map, stop at its walls '
+         'and at each other, and scan it; empty = the empty plane (no walls, no scan).'),
+    Spec('map_frame_id', 'map', 'Frame of the map (REP 105), shared by every robot: map -> '
+         "each robot's odometry frame goes on /tf; initialpose may be given in it."),
+    Spec('robot_radius', 0.105, "Radius of a robot's disc [m] (with map_file): it stops where "
+         'the disc touches a wall or another robot.', low=0.0, high=100.0, low_open=True),
+    Spec('scan_rate_hz', 10.0, "LaserScan rate on each robot's scan [Hz] (with map_file); "
+         '0 = no scan.', low=0.0, high=1000.0),
+    Spec('scan_beams', 360, 'Beams per scan, over the full turn counter-clockwise from -pi.',
+         low=1, high=100000),
+    Spec('scan_range_min', 0.12, 'Nearest range the scanner reports [m]; closer is -inf.',
+         low=0.0, high=1000.0),
+    Spec('scan_range_max', 3.5, 'Farthest range the scanner reports [m]; no return is +inf.',
+         low=0.0, high=1000.0, low_open=True),
+    Spec('scan_noise_std', 0.0, 'Standard deviation of the Gaussian noise on each range [m]; '
+         '0 = exact.', low=0.0, high=100.0),
+    Spec('seed', 0, 'Seed of the scan noise: runs with one seed give the same scans, bit for '
+         'bit.', low=0, high=2 ** 31 - 1),
+    Spec('scan_frame_id', 'base_scan', "Frame of the scan, at the robot's centre; base frame "
+         "-> scan frame goes on /tf_static (a default name gets the robot's prefix)."),
+)
+
+
+def open_surroundings(node, names):
+    """Return the world around the robots that node's parameters ask for, or None (no map)."""
+    p = node.params
+    if not p.map_file:
+        return None
+    try:
+        grid = load_map(p.map_file)
+    except MapError as error:
+        raise ParameterError(f"parameter 'map_file': {error}") from None
+    if p.scan_range_min >= p.scan_range_max:
+        raise ParameterError(
+            f"parameter 'scan_range_min' ({p.scan_range_min:g}) must be below "
+            f"'scan_range_max' ({p.scan_range_max:g})")
+    return Surroundings(node, names, grid)
+
+
+class Surroundings:
+    """The map, the walls and the scans of a simulator with map_file (see the docstring)."""
+
+    def __init__(self, node, names, grid):
+        p = node.params
+        self.grid = grid
+        self.map_frame = p.map_frame_id
+        self.walls = Walls(grid, p.robot_radius)
+        self.scanner = Scanner(grid, beams=p.scan_beams, range_min=p.scan_range_min,
+                               range_max=p.scan_range_max, noise_std=p.scan_noise_std,
+                               seed=p.seed, radius=p.robot_radius)
+        self._names = names
+        self._namespace = node.get_namespace()
+        prefixes = [f'{name}/' if name else '' for name in names]
+        self.scan_pubs = [node.create_publisher(LaserScan, prefix + 'scan', SCAN_QOS)
+                          for prefix in prefixes]
+        self._scan_every = (max(1, round(p.rate_hz / p.scan_rate_hz)) if p.scan_rate_hz > 0
+                            else 0)
+        # The time between two scans [s], for LaserScan.scan_time.
+        self._scan_time = self._scan_every / p.rate_hz
+        self._steps = 0
+        scan_frame = resolve_frame(self._namespace, p.scan_frame_id, 'base_scan')
+        self._scan_frames = [namespaced_frame(name, scan_frame) for name in names]
+        self._map_pub = node.create_publisher(OccupancyGrid, 'map', LATCHED_QOS)
+        self._static_pub = node.create_publisher(TFMessage, '/tf_static', LATCHED_QOS)
+        self._tf_pub = node.create_publisher(TFMessage, TF_TOPIC, TF_QOS)
+        self._map_layout = None
+
+    def start(self, frames, stamp_ns):
+        """Publish the map and base -> scan (frames: (odom, base) per robot) at stamp_ns."""
+        self._map_pub.publish(self.map_message(stamp_ns))
+        self.set_frames(frames)
+        static = TFMessage()
+        static.transforms = [self._identity(base, scan, stamp_ns)
+                             for (_, base), scan in zip(frames, self._scan_frames)]
+        self._static_pub.publish(static)
+
+    def set_frames(self, frames):
+        """Lay map -> odom out anew for frames, (odom, base) per robot."""
+        self._frames = list(frames)
+        self._map_layout = TransformLayout([(self.map_frame, odom) for odom, _ in frames])
+
+    def map_message(self, stamp_ns):
+        """Return the map as a nav_msgs/OccupancyGrid stamped stamp_ns."""
+        grid = self.grid
+        msg = OccupancyGrid()
+        msg.header.frame_id = self.map_frame
+        msg.header.stamp = Time(nanoseconds=stamp_ns).to_msg()
+        msg.info.map_load_time = msg.header.stamp
+        msg.info.resolution = float(grid.resolution)
+        msg.info.width, msg.info.height = int(grid.width), int(grid.height)
+        ox, oy, oyaw = grid.origin
+        msg.info.origin.position.x, msg.info.origin.position.y = float(ox), float(oy)
+        msg.info.origin.orientation.z = math.sin(0.5 * oyaw)
+        msg.info.origin.orientation.w = math.cos(0.5 * oyaw)
+        msg.data = array.array('b', grid.data.astype('int8').tobytes())
+        return msg
+
+    def publish(self, stamp_ns, world, taps):
+        """Publish map -> odom with this step's odometry, and the scans when they are due."""
+        sec, nanosec = divmod(stamp_ns, _NS)
+        half = 0.5 * world.map_yaw
+        data = self._map_layout.serialize(sec, nanosec, world.map_x, world.map_y,
+                                          np.sin(half), np.cos(half))
+        self._tf_pub.publish(data)
+        if taps:
+            taps.write(self._tf_pub.topic_name, data, stamp_ns)
+        due = self._scan_every and self._steps % self._scan_every == 0
+        self._steps += 1
+        if not due:
+            return
+        ranges = self.scanner.scan(*world.map_poses())
+        scanner = self.scanner
+        stamp = Time(nanoseconds=stamp_ns).to_msg()
+        for pub, frame, row in zip(self.scan_pubs, self._scan_frames, ranges):
+            msg = LaserScan()
+            msg.header.stamp = stamp
+            msg.header.frame_id = frame
+            msg.angle_min = float(scanner.angle_min)
+            msg.angle_max = float(scanner.angle_max)
+            msg.angle_increment = float(scanner.angle_increment)
+            msg.scan_time = self._scan_time
+            msg.range_min = float(scanner.range_min)
+            msg.range_max = float(scanner.range_max)
+            msg.ranges = array.array('f', row.tobytes())
+            pub.publish(msg)
+            if taps:
+                taps.write(pub.topic_name, msg, stamp_ns)
+
+    @staticmethod
+    def _identity(parent, child, stamp_ns):
+        transform = TransformStamped()
+        transform.header.stamp = Time(nanoseconds=stamp_ns).to_msg()
+        transform.header.frame_id = parent
+        transform.child_frame_id = child
+        transform.transform.rotation.w = 1.0
+        return transform

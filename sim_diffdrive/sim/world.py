@@ -1,0 +1,488 @@
+# Copyright 2026 motion_challenges contributors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The pure world: every robot's state and the simulated time, stepped in one place (no ROS).
+
+``World`` owns, per robot, the pose and velocities, the command it follows and its limits, the
+time its pose is integrated up to (integer nanoseconds), its cmd_vel deadline, the stamped
+commands it holds for later, and where its odometry frame lies in the map.  Its interface is
+small: ``command``, ``hold``, ``place`` (odometry frame), ``place_in_map``, ``set_limit``,
+``set_timeout``, and ``step_to(t_ns)``, which returns what the odometry carries; what happened
+on the way (a cmd_vel timeout, a contact) waits in ``events`` for the node to log.
+
+Every robot is advanced by one path, ``_advance``: its early commands at their stamps, its
+deadline, then the arcs of ``kinematics.arcs`` (the acceleration ramp) one by one, each cut
+short where the robot touches a wall (``walls``, world/contact.py).  A fleet larger than
+``ONE_BY_ONE`` with nothing special on the way and no walls moves in one numpy call instead
+(``kinematics.integrate_all``, bit for bit the same).  With walls, robots are solid to each
+other too: a command brings every robot up to its time, so all share one time, and after the
+step the pairs that came within reach are searched along the arcs each drove (``_collide``).
+"""
+
+import bisect
+from collections import namedtuple
+import math
+
+import numpy as np
+from sim_diffdrive.angles import normalize_angle
+from sim_diffdrive.kinematics import arcs
+from sim_diffdrive.kinematics import integrate
+from sim_diffdrive.kinematics import integrate_all
+from sim_diffdrive.kinematics import limit_command
+from sim_diffdrive.world.contact import overlaps_robot
+from sim_diffdrive.world.contact import robot_contact
+
+_NS = 1_000_000_000
+# In World.deadline_ns: no cmd_vel timeout pending.
+NO_DEADLINE = 2 ** 63 - 1
+# In World.integrated_ns: not integrated yet.
+NOT_YET = -1
+# Up to this many robots, step_to goes robot by robot on floats: numpy's cost per call
+# outweighs what it saves (a step of one moving robot: 36 us in numpy, 2 robot by robot).
+ONE_BY_ONE = 16
+LIMITS = ('max_linear_speed', 'max_angular_speed', 'max_linear_accel', 'max_angular_accel')
+
+# What every robot's odometry carries: the time [ns], and per robot x, y, the quaternion's z and
+# w, linear and angular velocity (lists of floats for a small world, arrays otherwise).
+Odometry = namedtuple('Odometry', 'stamp_ns x y qz qw linear angular')
+# Something that happened during a step: kind 'timeout' (data: when the last command came
+# [ns]), 'wall' (data: (x, y) in the map where it touched) or 'robot' (data: (other, x, y)).
+Event = namedtuple('Event', 'kind robot data')
+
+
+class PlacementError(ValueError):
+    """A robot may not be placed there: in a wall, or on another robot."""
+
+
+class World:
+    """
+    N unicycle robots and the time they are integrated up to (see the module docstring).
+
+    ``poses``: (x, y, yaw) per robot in its odometry frame; ``timeout_ns``: the cmd_vel
+    timeout (0: none); ``limits``: the four LIMITS for every robot (0: none); ``walls``: a
+    world.contact.Walls, or None for the empty plane (robots then pass through each other).
+    """
+
+    def __init__(self, poses, *, names=None, timeout_ns=0, limits=None, walls=None,
+                 ramp_step=0.001):
+        n = len(poses)
+        self.names = list(names) if names is not None else [''] * n
+        self.x = np.array([float(p[0]) for p in poses])
+        self.y = np.array([float(p[1]) for p in poses])
+        self.yaw = np.array([normalize_angle(float(p[2])) for p in poses])
+        for name in ('linear', 'angular', 'target_linear', 'target_angular'):
+            setattr(self, name, np.zeros(n))
+        self.commanded = [(0.0, 0.0)] * n
+        self.limits = {name: [float((limits or {}).get(name, 0.0))] * n for name in LIMITS}
+        self.ramp_step = ramp_step
+        self.integrated_ns = np.full(n, NOT_YET, dtype=np.int64)
+        self.deadline_ns = np.full(n, NO_DEADLINE, dtype=np.int64)
+        self.last_command_ns = [None] * n
+        # Stamped commands ahead of the clock, (stamp_ns, linear, angular) in stamp order.
+        self.early = [[] for _ in range(n)]
+        self.has_early = np.zeros(n, dtype=bool)
+        self.timeout_ns = timeout_ns
+        # True while every robot is known to be at rest with no early command: a step then only
+        # moves the time on.  Set by step_to; cleared by whatever gives a robot something to do.
+        self.resting = False
+        self.one_by_one = n <= ONE_BY_ONE
+        self.walls = walls
+        self.radius = walls.radius if walls is not None else 0.0
+        # Where each robot's odometry frame lies in the map (map -> odom): x, y, yaw.
+        self.map_x, self.map_y, self.map_yaw = np.zeros(n), np.zeros(n), np.zeros(n)
+        # What each robot rests against since its last contact ('wall', 'robot' or None), so
+        # that one contact is one Event however long the robot pushes.
+        self.touching = [None] * n
+        self.events = []
+        # While a step of solid robots runs: per robot its pose at the start and its arcs.
+        self._drives = None
+        if walls is not None:
+            for i in range(n):
+                self._check_place(i, *self._to_map(i, self.x[i], self.y[i], self.yaw[i]))
+
+    def __len__(self):
+        return len(self.names)
+
+    # -- what the node reads --------------------------------------------------------------
+
+    def moving(self):
+        """Return a boolean array: which robots move or are commanded to."""
+        return ((self.linear != 0.0) | (self.angular != 0.0)
+                | (self.target_linear != 0.0) | (self.target_angular != 0.0))
+
+    def odometry(self):
+        """Return the Odometry of every robot at the latest time any is integrated up to."""
+        if self.one_by_one:
+            half = [0.5 * yaw for yaw in self.yaw.tolist()]
+            return Odometry(max(self.integrated_ns.tolist()), self.x.tolist(), self.y.tolist(),
+                            [math.sin(h) for h in half], [math.cos(h) for h in half],
+                            self.linear.tolist(), self.angular.tolist())
+        half = 0.5 * self.yaw
+        return Odometry(int(self.integrated_ns.max()), self.x, self.y, np.sin(half),
+                        np.cos(half), self.linear, self.angular)
+
+    def map_poses(self):
+        """Return arrays (x, y, yaw) of every robot in the map frame."""
+        c, s = np.cos(self.map_yaw), np.sin(self.map_yaw)
+        return (self.map_x + c * self.x - s * self.y, self.map_y + s * self.x + c * self.y,
+                np.array([normalize_angle(a) for a in (self.yaw + self.map_yaw).tolist()]))
+
+    def begin(self, now_ns):
+        """Start every robot's time at now_ns (a simulator that owns time, at its start)."""
+        self.integrated_ns[:] = now_ns
+
+    def take_events(self):
+        """Return what happened since the last call (a list of Event) and forget it."""
+        events, self.events = self.events, []
+        return events
+
+    # -- what the node tells it -------------------------------------------------------------
+
+    def command(self, i, linear, angular, at_ns):
+        """Robot i follows (linear, angular) from at_ns on (integrated up to at_ns first)."""
+        if self.walls is not None:
+            self.step_to(at_ns)  # solid robots share one time
+        else:
+            self._advance(i, at_ns)
+        self._command(i, linear, angular)
+        self._set_last_command(i, at_ns)
+
+    def hold(self, i, stamp_ns, linear, angular):
+        """Keep a command stamped ahead of the clock for robot i; it applies at its stamp."""
+        bisect.insort(self.early[i], (stamp_ns, linear, angular))
+        self.has_early[i] = True
+        self.resting = False
+
+    def set_timeout(self, timeout_ns):
+        """Use a new cmd_vel timeout [ns] (0: none) for every robot, from its last command."""
+        self.timeout_ns = timeout_ns
+        for i in range(len(self)):
+            self._set_last_command(i, self.last_command_ns[i])
+
+    def set_limit(self, i, name, value):
+        """Change one of robot i's LIMITS; the command in force is limited anew."""
+        if name not in self.limits:
+            raise KeyError(f'no limit {name!r}')
+        self.limits[name][i] = float(value)
+        self._command(i, *self.commanded[i])
+
+    def place(self, i, x, y, yaw):
+        """Put robot i at (x, y, yaw) in its odometry frame, at rest; forget its commands."""
+        if self.walls is not None:
+            self._check_place(i, *self._to_map(i, x, y, yaw))
+        self._rest(i, x, y, yaw)
+
+    def place_in_map(self, i, x, y, yaw):
+        """Put robot i at (x, y, yaw) in the map, at rest; its odometry goes on where it was."""
+        if self.walls is not None:
+            self._check_place(i, x, y, yaw)
+        ox, oy, oyaw = float(self.x[i]), float(self.y[i]), float(self.yaw[i])
+        turn = normalize_angle(yaw - oyaw)
+        c, s = math.cos(turn), math.sin(turn)
+        self.map_x[i], self.map_y[i] = x - (c * ox - s * oy), y - (s * ox + c * oy)
+        self.map_yaw[i] = turn
+        self._rest(i, ox, oy, oyaw)
+
+    def _rest(self, i, x, y, yaw):
+        self.x[i], self.y[i], self.yaw[i] = x, y, normalize_angle(yaw)
+        for name in ('linear', 'angular', 'target_linear', 'target_angular'):
+            getattr(self, name)[i] = 0.0
+        self.commanded[i] = (0.0, 0.0)
+        self._set_last_command(i, None)
+        self.early[i].clear()
+        self.has_early[i] = False
+        self.touching[i] = None
+        self.resting = False
+
+    def _check_place(self, i, x, y, yaw):
+        """Raise PlacementError if robot i at (x, y) in the map would be in a wall or a robot."""
+        name = self.names[i] or 'the robot'
+        if self.walls.overlaps(x, y):
+            raise PlacementError(f'{name} at ({x:.3f}, {y:.3f}) in the map would be inside a '
+                                 f'wall (robot_radius {self.radius:g} m)')
+        mx, my, _ = self.map_poses()
+        for j in range(len(self)):
+            if j != i and overlaps_robot(self.radius, x, y, float(mx[j]), float(my[j])):
+                raise PlacementError(
+                    f'{name} at ({x:.3f}, {y:.3f}) in the map would be on '
+                    f'{self.names[j] or "another robot"} at ({mx[j]:.3f}, {my[j]:.3f})')
+
+    def _command(self, i, linear, angular):
+        limits = self.limits
+        self.commanded[i] = (linear, angular)
+        target_linear = limit_command(linear, 0.0, limits['max_linear_speed'][i], 0.0, 0.0)
+        target_angular = limit_command(angular, 0.0, limits['max_angular_speed'][i], 0.0, 0.0)
+        self.target_linear[i], self.target_angular[i] = target_linear, target_angular
+        if limits['max_linear_accel'][i] <= 0.0:
+            self.linear[i] = target_linear
+        if limits['max_angular_accel'][i] <= 0.0:
+            self.angular[i] = target_angular
+        if target_linear or target_angular:
+            self.resting = False
+
+    def _set_last_command(self, i, at_ns):
+        self.last_command_ns[i] = at_ns
+        self.deadline_ns[i] = (NO_DEADLINE if at_ns is None or self.timeout_ns <= 0
+                               else at_ns + self.timeout_ns)
+
+    # -- the step ---------------------------------------------------------------------------
+
+    def step_to(self, now_ns):
+        """Integrate every robot up to now_ns; return the Odometry at now_ns."""
+        integrated = self.integrated_ns
+        if self.resting:
+            integrated[:] = now_ns
+            return self.odometry()
+        if self.walls is not None:
+            known = integrated[integrated != NOT_YET]
+            begin_ns = min(int(known.min()), now_ns) if known.size else now_ns
+            self._drives = {}
+            self._begin_ns = begin_ns
+            for i in range(len(self)):
+                self._advance(i, now_ns)
+            drives, self._drives = self._drives, None
+            self._collide(begin_ns, drives)
+        elif self.one_by_one:
+            for i in range(len(self)):
+                self._advance(i, now_ns)
+        else:
+            self._advance_in_numpy(now_ns)
+        if not (self.moving().any() or self.has_early.any()):
+            self.resting = True
+        return self.odometry()
+
+    def _advance_in_numpy(self, now_ns):
+        """step_to for a large fleet on the empty plane: one numpy call for the steady."""
+        integrated = self.integrated_ns
+        special = ((self.deadline_ns <= now_ns) | self.has_early | (integrated > now_ns)
+                   | (integrated == NOT_YET)
+                   | (self.linear != self.target_linear) | (self.angular != self.target_angular))
+        for i in np.flatnonzero(special).tolist():
+            self._advance(i, now_ns)
+        moving = (integrated < now_ns) & self.moving()
+        index = np.flatnonzero(moving)
+        if index.size:
+            dt = (now_ns - integrated[index]) / _NS
+            self.x[index], self.y[index], self.yaw[index] = integrate_all(
+                self.x[index], self.y[index], self.yaw[index], self.linear[index],
+                self.angular[index], dt)
+        integrated[integrated < now_ns] = now_ns
+
+    def _advance(self, i, now_ns):
+        """Integrate robot i up to now_ns: early commands at their stamps, then its deadline."""
+        integrated = int(self.integrated_ns[i])
+        early = self.early[i]
+        if integrated == NOT_YET or now_ns < integrated:
+            # First call, or the clock jumped back (a replayed /clock): restart from here, count
+            # the timeout from here too, and drop commands meant for a time that is gone.
+            self.integrated_ns[i] = now_ns
+            last = self.last_command_ns[i]
+            if last is not None:
+                self._set_last_command(i, min(last, now_ns))
+            if integrated != NOT_YET:
+                early.clear()
+        while early and early[0][0] <= now_ns:
+            stamp_ns, linear, angular = early.pop(0)
+            self._timeout_to(i, stamp_ns)
+            self._drive(i, stamp_ns)
+            self._command(i, linear, angular)
+            self._set_last_command(i, stamp_ns)
+        self.has_early[i] = bool(early)
+        self._timeout_to(i, now_ns)
+        self._drive(i, now_ns)
+
+    def _timeout_to(self, i, now_ns):
+        """Stop robot i at its cmd_vel deadline, if that falls by now_ns."""
+        deadline = int(self.deadline_ns[i])
+        if deadline > now_ns:
+            return
+        if self._moves(i):
+            self._drive(i, max(deadline, int(self.integrated_ns[i])))
+            self._command(i, 0.0, 0.0)
+            self.events.append(Event('timeout', i, self.last_command_ns[i]))
+        # At rest, a passed deadline changes nothing until the next command.
+        self._set_last_command(i, None)
+
+    def _moves(self, i):
+        return bool(self.linear[i] or self.angular[i] or self.target_linear[i]
+                    or self.target_angular[i])
+
+    def _drive(self, i, to_ns):
+        """Drive robot i on its command from its time to to_ns, stopping where it touches."""
+        start_ns = int(self.integrated_ns[i])
+        if to_ns <= start_ns:
+            return
+        self.integrated_ns[i] = to_ns
+        if not self._moves(i):
+            return
+        x, y, yaw = float(self.x[i]), float(self.y[i]), float(self.yaw[i])
+        linear, angular = float(self.linear[i]), float(self.angular[i])
+        limits = self.limits
+        walls = self.walls
+        pieces = None
+        if self._drives is not None:  # a step of solid robots: keep the arcs (_collide)
+            pieces = self._drives.setdefault(
+                i, ((x, y, yaw), self._to_map(i, x, y, yaw), []))[2]
+            begin = (start_ns - self._begin_ns) / _NS
+        for step, held_linear, held_angular, linear, angular in arcs(
+                linear, angular, float(self.target_linear[i]), float(self.target_angular[i]),
+                limits['max_linear_accel'][i], limits['max_angular_accel'][i], self.ramp_step,
+                (to_ns - start_ns) / _NS):
+            if walls is not None and held_linear:
+                touch = walls.contact(*self._to_map(i, x, y, yaw), held_linear, held_angular,
+                                      step)
+                if touch is not None:
+                    x, y, yaw = integrate(x, y, yaw, held_linear, held_angular, touch)
+                    if pieces is not None:
+                        pieces.append((begin, touch, held_linear, held_angular))
+                    self.x[i], self.y[i], self.yaw[i] = x, y, yaw
+                    self._stop(i, 'wall', self._to_map(i, x, y, yaw)[:2])
+                    return
+                if self.touching[i] == 'wall':
+                    self.touching[i] = None
+            x, y, yaw = integrate(x, y, yaw, held_linear, held_angular, step)
+            if pieces is not None:
+                pieces.append((begin, step, held_linear, held_angular))
+                begin += step
+        self.x[i], self.y[i], self.yaw[i] = x, y, yaw
+        self.linear[i], self.angular[i] = linear, angular
+
+    def _stop(self, i, kind, data):
+        """Robot i touched something: at rest, its command zero; the first touch is an Event."""
+        for name in ('linear', 'angular', 'target_linear', 'target_angular'):
+            getattr(self, name)[i] = 0.0
+        self.commanded[i] = (0.0, 0.0)
+        if self.touching[i] != kind:
+            self.touching[i] = kind
+            self.events.append(Event(kind, i, data))
+
+    def _to_map(self, i, x, y, yaw):
+        """Return robot i's pose (x, y, yaw) given in its odometry frame, in the map."""
+        turn = float(self.map_yaw[i])
+        if turn == 0.0:
+            return float(self.map_x[i]) + x, float(self.map_y[i]) + y, yaw
+        c, s = math.cos(turn), math.sin(turn)
+        return (float(self.map_x[i]) + c * x - s * y, float(self.map_y[i]) + s * x + c * y,
+                normalize_angle(yaw + turn))
+
+    # -- robots solid to each other ---------------------------------------------------------
+
+    def _collide(self, begin_ns, drives):
+        """
+        Stop each pair of robots that touched during the step, at the moment they touched.
+
+        drives: per robot that moved since begin_ns, (its pose where it began to move in the
+        odometry frame and in the map, its arcs (begin [s after begin_ns], seconds, linear,
+        angular)).  The earliest touch of any pair is found
+        along both robots' arcs; both are put back where they were then, at rest, their arcs
+        cut there; then the next earliest, until none is left.
+        """
+        if not drives:
+            return
+        mx, my, myaw = self.map_poses()
+        tracks = [_Track(*drives[i][1], drives[i][2]) if i in drives
+                  else _Track(float(mx[i]), float(my[i]), float(myaw[i]), [])
+                  for i in range(len(self))]
+        reach = 2.0 * self.radius
+        moved = set(drives)
+        touched = set()  # pairs stopped against each other (their cut tracks end touching)
+        while True:
+            first = _earliest_touch(tracks, reach, self.radius, touched)
+            if first is None:
+                break
+            at, i, j = first
+            touched.add((i, j))
+            for k in (i, j):
+                if k in drives:
+                    self._replay(k, drives.pop(k), at)
+                tracks[k] = tracks[k].cut(at)
+            mx, my, _ = self.map_poses()
+            self._stop(i, 'robot', (j, float(mx[i]), float(my[i])))
+            self._stop(j, 'robot', (i, float(mx[j]), float(my[j])))
+            moved -= {i, j}
+        for i in moved:  # drove free of every robot
+            if self.touching[i] == 'robot':
+                self.touching[i] = None
+
+    def _replay(self, i, drive, at):
+        """Put robot i back where its drive had brought it at [s into the step]."""
+        (x, y, yaw), _, pieces = drive
+        for begin, seconds, linear, angular in pieces:
+            if begin >= at:
+                break
+            x, y, yaw = integrate(x, y, yaw, linear, angular, min(seconds, at - begin))
+        self.x[i], self.y[i], self.yaw[i] = x, y, yaw
+
+
+class _Track:
+    """A robot's way through a step in the map: its pose at the start and its timed arcs."""
+
+    def __init__(self, x, y, yaw, arcs_):
+        self.start = (x, y, yaw)
+        self.arcs = arcs_  # (begin [s into the step], seconds, linear, angular), in order
+        self.length = sum(abs(linear) * seconds for _, seconds, linear, _ in arcs_)
+
+    def at(self, t):
+        """Return (x, y, yaw, linear, angular): the pose at t [s] and the arc held from there."""
+        x, y, yaw = self.start
+        for begin, seconds, linear, angular in self.arcs:
+            if t < begin + seconds:
+                if t > begin:
+                    x, y, yaw = integrate(x, y, yaw, linear, angular, t - begin)
+                return (x, y, yaw, linear, angular) if t >= begin else (x, y, yaw, 0.0, 0.0)
+            x, y, yaw = integrate(x, y, yaw, linear, angular, seconds)
+        return x, y, yaw, 0.0, 0.0
+
+    def bounds(self):
+        return [edge for begin, seconds, _, _ in self.arcs for edge in (begin, begin + seconds)]
+
+    def cut(self, t):
+        """Return this track, standing still from t on."""
+        kept = [(begin, min(seconds, t - begin), linear, angular)
+                for begin, seconds, linear, angular in self.arcs if begin < t]
+        return _Track(*self.start, kept)
+
+
+def _earliest_touch(tracks, reach, radius, touched):
+    """Return (t [s], i, j) of the first two tracks that touch, or None."""
+    moved = np.array([track.length for track in tracks])
+    if not moved.any():
+        return None
+    x = np.array([track.start[0] for track in tracks])
+    y = np.array([track.start[1] for track in tracks])
+    apart = np.hypot(x[:, None] - x[None, :], y[:, None] - y[None, :])
+    near = apart - (moved[:, None] + moved[None, :]) <= reach + 1e-9
+    near &= (moved[:, None] + moved[None, :]) > 0.0
+    first = None
+    rows, columns = np.nonzero(np.triu(near, 1))
+    for i, j in zip(rows.tolist(), columns.tolist()):
+        if (i, j) in touched:
+            continue
+        at = _touch(tracks[i], tracks[j], reach, radius)
+        if at is not None and (first is None or at < first[0]):
+            first = (at, i, j)
+    return first
+
+
+def _touch(a, b, reach, radius):
+    """Return the first time [s] tracks a and b come reach apart while closing in, or None."""
+    edges = sorted({0.0, *a.bounds(), *b.bounds()})
+    for begin, end in zip(edges, edges[1:]):
+        if end <= begin:
+            continue
+        at = robot_contact(radius, a.at(begin), b.at(begin), end - begin)
+        if at is not None:
+            return begin + at
+    return None

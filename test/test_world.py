@@ -1,0 +1,276 @@
+# Copyright 2026 motion_challenges contributors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""The pure world: many robots, bit for bit the single robot's kinematics (no ROS)."""
+
+import math
+import random
+import struct
+
+import numpy as np
+import pytest
+from sim_diffdrive.angles import normalize_angle
+from sim_diffdrive.kinematics import integrate
+from sim_diffdrive.kinematics import integrate_all
+from sim_diffdrive.kinematics import normalize_angles
+from sim_diffdrive.kinematics import SMALL_ANGLE
+from sim_diffdrive.kinematics import UnicycleModel
+from sim_diffdrive.sim.world import ONE_BY_ONE
+from sim_diffdrive.sim.world import World
+
+_NS = 1_000_000_000
+
+
+def state(world, i):
+    return tuple(float(getattr(world, name)[i]) for name in ('x', 'y', 'yaw', 'linear', 'angular'))
+
+
+def twin_state(model):
+    return (model.x, model.y, model.yaw, model.linear, model.angular)
+
+
+def test_normalize_angles_equals_normalize_angle_bit_for_bit():
+    rng = random.Random(7)
+    angles = [rng.uniform(-9.0, 9.0) for _ in range(20000)]
+    # The edges: +-pi (a tie that math.remainder breaks to +pi), several turns, huge ones.
+    angles += [math.pi, -math.pi, 2 * math.pi, -2 * math.pi, 3 * math.pi, -3 * math.pi,
+               math.nextafter(math.pi, 10.0), math.nextafter(-math.pi, -10.0), 6.0, -6.0,
+               100.0, -1e5, 0.0, -0.0]
+    wrapped = normalize_angles(np.array(angles)).tolist()
+    assert wrapped == [normalize_angle(a) for a in angles]
+
+
+def test_integrate_all_equals_integrate_bit_for_bit_through_the_small_angle_switch():
+    rng = random.Random(8)
+    rows = [(rng.uniform(-5, 5), rng.uniform(-5, 5), rng.uniform(-3.2, 3.2),
+             rng.uniform(-2, 2), rng.choice([0.0, 1e-9, 2 * SMALL_ANGLE, rng.uniform(-4, 4)]),
+             rng.choice([0.02, 0.001, 0.37])) for _ in range(5000)]
+    x, y, yaw, linear, angular, dt = (np.array(column) for column in zip(*rows))
+    batch = zip(*(a.tolist() for a in integrate_all(x, y, yaw, linear, angular, dt)))
+    assert list(batch) == [integrate(*row) for row in rows]
+
+
+# No limits, and every kind of limit (some robots then ramp).
+LIMITS = [{}, {'max_linear_accel': 0.5, 'max_angular_accel': 1.0, 'max_linear_speed': 0.8,
+               'max_angular_speed': 2.0}]
+
+
+def random_command(rng):
+    """Return (linear, angular): zero, tiny or any, as controllers send them."""
+    return (rng.choice([0.0, rng.uniform(-1, 1)]), rng.choice([0.0, 1e-7, rng.uniform(-3, 3)]))
+
+
+def world_and_twins(rng, count, limits):
+    """Return a World of count robots at random poses and a lone UnicycleModel for each."""
+    poses = [(rng.uniform(-5, 5), rng.uniform(-5, 5), rng.uniform(-3, 3)) for _ in range(count)]
+    world = World(poses, limits=limits)
+    world.begin(0)
+    return world, [UnicycleModel(*pose, **limits) for pose in poses]
+
+
+@pytest.mark.parametrize('count', [ONE_BY_ONE, 64])
+@pytest.mark.parametrize('limits', LIMITS)
+def test_a_world_moves_each_robot_as_a_unicycle_model_alone_would(limits, count):
+    """Random commands, some robots ramping, in numpy or robot by robot: each as its twin."""
+    rng = random.Random(9)
+    world, alone = world_and_twins(rng, count, limits)
+    ramped = 0
+    now = 0
+    for _ in range(300):
+        for i, twin in enumerate(alone):
+            if rng.random() < 0.05:
+                command = random_command(rng)
+                world.command(i, *command, now)
+                twin.command(*command)
+        ramped += int(((world.linear != world.target_linear)
+                       | (world.angular != world.target_angular)).sum())
+        now += 20_000_000
+        world.step_to(now)
+        for twin in alone:
+            twin.advance(0.02)
+    assert [state(world, i) for i in range(count)] == [twin_state(twin) for twin in alone]
+    assert any(twin.linear for twin in alone)  # some robots were moving at the end
+    assert bool(ramped) == bool(limits)
+
+
+@pytest.mark.parametrize('limits', LIMITS)
+def test_a_robot_commanded_at_any_moment_moves_as_its_lone_twin(limits):
+    """As the simulator does at each command: one robot brought up to then, bit for bit."""
+    rng = random.Random(11)
+    world, alone = world_and_twins(rng, 16, limits)
+    times = [0] * 16
+    for _ in range(400):
+        k = rng.randrange(len(alone))
+        dt_ns = rng.choice([0, 1, 3_000_000, 20_000_000, rng.randrange(0, 500_000_000)])
+        times[k] += dt_ns
+        command = random_command(rng) if rng.random() < 0.3 else world.commanded[k]
+        world.command(k, *command, times[k])
+        alone[k].advance(dt_ns / _NS)
+        alone[k].command(*command)
+    assert [state(world, i) for i in range(16)] == [twin_state(twin) for twin in alone]
+    assert sum(bool(twin.linear) for twin in alone) > 4  # many were moving at the end
+
+
+def test_commands_limits_and_places_are_the_worlds_own():
+    world = World([(0.0, 0.0, 0.0)] * 2, limits={'max_angular_speed': 1.0})
+    world.command(1, 0.3, 5.0, 0)
+    assert (world.linear.tolist(), world.angular.tolist()) == ([0.0, 0.3], [0.0, 1.0])
+    world.set_limit(1, 'max_angular_speed', 2.0)
+    assert world.angular[1] == 2.0
+    assert world.moving().tolist() == [False, True]
+    world.place(1, 1.0, 1.0, 4.0)
+    assert (world.x[1], world.yaw[1], world.moving()[1]) == (1.0, normalize_angle(4.0), False)
+    with pytest.raises(KeyError):
+        world.set_limit(0, 'max_speed', 1.0)
+
+
+def _arrays(world):
+    return [getattr(world, name).tolist() for name in (
+        'x', 'y', 'yaw', 'linear', 'angular', 'target_linear', 'target_angular',
+        'integrated_ns')]
+
+
+def _odometry_bits(world):
+    """Return what world.odometry() gives, its floats as their IEEE 754 bits (-0.0 is not 0.0)."""
+    stamp_ns, *values = world.odometry()
+    return stamp_ns, [struct.pack(f'<{len(v)}d', *v) for v in values]
+
+
+def play_events(seed, worlds, before_step):
+    """
+    Step two worlds through the same random events, asserting their arrays equal after each.
+
+    The events: commands, stops, early commands, places, cmd_vel timeouts, clock jumps.
+    before_step(worlds) runs before each step.  Return how many steps began with the first
+    world at rest, and the timeouts of each world.
+    """
+    rng = random.Random(seed)
+    now, rested = 0, 0
+    timeouts = ([], [])
+    for _ in range(600):
+        now += -500_000_000 if rng.random() < 0.02 else rng.choice([20_000_000, 1_000_000])
+        event = rng.random()
+        i = rng.randrange(len(worlds[0]))
+        for world in worlds:  # as robot.py hands a command over, at the moment it arrives
+            if event < 0.04:
+                world.command(i, 0.3, -0.7, now)
+            elif event < 0.10:
+                world.command(i, 0.0, 0.0, now)
+            elif event < 0.12:
+                world.hold(i, now + 30_000_000, 0.0, 1.5)
+            elif event < 0.13:
+                world.place(i, 1.0, 2.0, 0.5)
+        rested += worlds[0].resting
+        before_step(worlds)
+        for world, seen in zip(worlds, timeouts):
+            world.step_to(now)
+            seen.extend(event.robot for event in world.take_events() if event.kind == 'timeout')
+        assert _arrays(worlds[0]) == _arrays(worlds[1])
+        assert _odometry_bits(worlds[0]) == _odometry_bits(worlds[1])
+    return rested, timeouts
+
+
+def two_worlds(count):
+    """Return two worlds of count robots with a cmd_vel timeout and an acceleration limit."""
+    return [World([(0.5, -0.5, 1.0)] * count, timeout_ns=300_000_000,
+                  limits={'max_linear_accel': 2.0}) for _ in range(2)]
+
+
+@pytest.mark.parametrize('one_by_one', [True, False])
+@pytest.mark.parametrize('seed', [1, 2, 3])
+def test_a_world_at_rest_steps_as_one_that_looks_at_every_robot(seed, one_by_one):
+    """Commands, stops, early commands, places, timeouts, clock jumps: bit for bit the same."""
+    worlds = two_worlds(4)
+    for world in worlds:
+        world.one_by_one = one_by_one
+
+    def look_at_every_robot(worlds):
+        worlds[1].resting = False
+    rested, timeouts = play_events(seed, worlds, look_at_every_robot)
+    assert timeouts[0] == timeouts[1] and timeouts[0]
+    assert 50 < rested < 550  # both ways were taken, many times
+
+
+@pytest.mark.parametrize('count', [1, 4, ONE_BY_ONE])
+@pytest.mark.parametrize('seed', [1, 2])
+def test_a_small_world_stepped_robot_by_robot_moves_as_in_numpy(seed, count):
+    """
+    The same events as above: robot by robot on floats, bit for bit what numpy gives.
+
+    The odometry's values too: floats and math.sin, math.cos against arrays and numpy's.
+    """
+    worlds = two_worlds(count)
+    assert worlds[1].one_by_one
+    worlds[1].one_by_one = False
+    _, timeouts = play_events(seed, worlds, lambda worlds: None)
+    assert timeouts[0] == timeouts[1]
+    assert timeouts[0] or count == 1  # (one robot, commanded this often, never timed out)
+
+
+def test_a_world_larger_than_one_by_one_is_stepped_in_numpy():
+    assert World([(0.0, 0.0, 0.0)] * ONE_BY_ONE).one_by_one
+    assert not World([(0.0, 0.0, 0.0)] * (ONE_BY_ONE + 1)).one_by_one
+
+
+@pytest.mark.parametrize('count', [4, ONE_BY_ONE + 1])
+def test_the_odometry_values_are_the_latest_time_and_each_robots_pose_and_velocities(count):
+    poses = [(0.1 * i, -0.2 * i, 0.3 * i - 2.5) for i in range(count)]
+    world = World(poses)
+    world.step_to(5_000)
+    world.command(count - 1, 0.5, -0.25, 5_000)
+    world.step_to(7_000)
+    stamp_ns, x, y, qz, qw, linear, angular = world.odometry()
+    assert stamp_ns == 7_000
+    assert list(x) == pytest.approx([pose[0] for pose in poses], abs=1e-6)
+    assert list(y) == pytest.approx([pose[1] for pose in poses], abs=1e-6)
+    yaws = [math.atan2(2.0 * z * w, 1.0 - 2.0 * z * z) for z, w in zip(qz, qw)]
+    assert yaws == pytest.approx([pose[2] for pose in poses], abs=1e-6)
+    assert list(linear) == [0.0] * (count - 1) + [0.5]
+    assert list(angular) == [0.0] * (count - 1) + [-0.25]
+    assert isinstance(x, list) == (count <= ONE_BY_ONE)
+
+
+def test_any_velocity_or_early_command_wakes_a_resting_world():
+    world = World([(0.0, 0.0, 0.0)] * 3)
+    world.step_to(1_000)
+    assert world.resting
+    world.command(2, 0.0, 0.0, 1_000)
+    assert world.resting
+    world.command(2, 0.0, 0.1, 1_000)
+    assert not world.resting
+    world.step_to(2_000)
+    assert not world.resting and world.yaw[2] == pytest.approx(1e-7)
+    world.command(2, 0.0, 0.0, 2_000)
+    world.step_to(3_000)
+    assert world.resting
+    world.hold(0, 5_000, 1.0, 0.0)
+    assert not world.resting
+    world.step_to(6_000)
+    assert world.x[0] == pytest.approx(1e-6) and world.integrated_ns.tolist() == [6_000] * 3
+
+
+def test_a_robot_placed_in_the_map_keeps_its_odometry_and_moves_map_to_odom():
+    world = World([(1.0, 0.5, 0.25)])
+    world.place_in_map(0, 3.0, -1.0, 1.0)
+    assert (world.x[0], world.y[0], world.yaw[0]) == (1.0, 0.5, 0.25)  # odometry continuous
+    mx, my, myaw = world.map_poses()
+    assert (mx[0], my[0], myaw[0]) == pytest.approx((3.0, -1.0, 1.0), abs=1e-12)
+    world.command(0, 1.0, 0.0, 0)
+    world.step_to(_NS)
+    mx, my, myaw = world.map_poses()
+    # One metre along the heading in the map, whatever the odometry frame's heading.
+    assert (mx[0], my[0], myaw[0]) == pytest.approx(
+        (3.0 + math.cos(1.0), -1.0 + math.sin(1.0), 1.0), abs=1e-12)
+    assert (world.x[0], world.y[0]) == pytest.approx(
+        (1.0 + math.cos(0.25), 0.5 + math.sin(0.25)), abs=1e-12)

@@ -1,0 +1,256 @@
+# Copyright 2026 motion_challenges contributors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+``unicycle_sim`` with ``map_file`` in one process: walls, scans, map -> odom, by closed forms.
+
+The example room (maps/room.yaml): walls along its borders, the inner faces at x = -0.45 and
+3.45, y = -0.45 and 2.45, and an inner wall x 2.00 .. 2.10, y 0.00 .. 1.80.  Every expected
+value is worked out here from those faces, independently of the simulator's geometry.
+"""
+
+import math
+from pathlib import Path
+
+from geometry_msgs.msg import PoseWithCovarianceStamped
+from nav_msgs.msg import OccupancyGrid
+import numpy as np
+import pytest
+from rclpy.node import Node
+from sim_diffdrive.angles import quaternion_from_yaw
+from sim_diffdrive.harness import SimGraph
+from sim_diffdrive.harness import twist_of
+from sim_diffdrive.parameters import ParameterError
+from sim_diffdrive.sim.node import UnicycleSim
+from sim_diffdrive.sim.surroundings import LATCHED_QOS
+from tf2_msgs.msg import TFMessage
+
+ROOM = str(Path(__file__).resolve().parents[1] / 'maps' / 'room.yaml')
+RADIUS = 0.105
+# The room's walls as boxes (x0, x1, y0, y1) in the map frame.
+WALLS = [(-0.5, -0.45, -0.5, 2.5), (3.45, 3.5, -0.5, 2.5), (-0.5, 3.5, -0.5, -0.45),
+         (-0.5, 3.5, 2.45, 2.5), (2.0, 2.1, 0.0, 1.8)]
+
+
+def ray_to_box(x, y, heading, box):
+    """Return the distance along the ray from (x, y) to the box (slab method), or inf."""
+    x0, x1, y0, y1 = box
+    near, far = 0.0, math.inf
+    for origin, direction, low, high in ((x, math.cos(heading), x0, x1),
+                                         (y, math.sin(heading), y0, y1)):
+        if abs(direction) < 1e-15:
+            if not low <= origin <= high:
+                return math.inf
+            continue
+        t0, t1 = sorted(((low - origin) / direction, (high - origin) / direction))
+        near, far = max(near, t0), min(far, t1)
+    return near if near <= far else math.inf
+
+
+def expected_ranges(x, y, yaw, beams=360, range_max=3.5):
+    ranges = []
+    for k in range(beams):
+        heading = yaw - math.pi + k * 2.0 * math.pi / beams
+        r = min(ray_to_box(x, y, heading, box) for box in WALLS)
+        ranges.append(r if r <= range_max else math.inf)
+    return ranges
+
+
+def assert_scan_is(scan, expected):
+    """Each range as float32 is the exact distance within one float32 step."""
+    ranges = np.array(scan.ranges, dtype=np.float64)
+    exact = np.array(expected)
+    finite = np.isfinite(exact)
+    assert (np.isinf(ranges) == ~finite).all()
+    step = np.spacing(exact[finite].astype(np.float32)).astype(np.float64)
+    assert (np.abs(ranges[finite] - exact[finite]) <= step).all(), (
+        np.abs(ranges[finite] - exact[finite]).max())
+
+
+def pose_estimate(frame, x, y, yaw):
+    msg = PoseWithCovarianceStamped()
+    msg.header.frame_id = frame
+    msg.pose.pose.position.x, msg.pose.pose.position.y = x, y
+    q = msg.pose.pose.orientation
+    q.x, q.y, q.z, q.w = quaternion_from_yaw(yaw)
+    return msg
+
+
+def test_the_scan_shows_the_exact_distances_to_the_walls_from_any_pose(graph):
+    graph.sim(map_file=ROOM, initial_x=0.5, initial_y=0.3, initial_yaw=0.3)
+    graph.step_for(0.2)
+    scan = graph.scan()
+    assert scan.header.frame_id == 'base_scan'
+    assert (scan.angle_min, len(scan.ranges)) == (pytest.approx(-math.pi), 360)
+    assert_scan_is(scan, expected_ranges(0.5, 0.3, 0.3))
+    # Along +x from (0.5, 0.3): the inner wall's face, 1.5 m on.
+    assert scan.ranges[180 - 17] != scan.ranges[180]  # not one distance for all
+
+
+def test_a_robot_driven_into_a_wall_stops_at_contact_and_drives_away_again(graph, capfd):
+    graph.sim(map_file=ROOM, initial_x=0.5, initial_y=0.3, cmd_vel_timeout=0.0)
+    probe = graph.probe()
+    probe.send(0.5, 0.0)
+    graph.step_for(5.0)
+    x, y, yaw = graph.pose()
+    assert x == pytest.approx(2.0 - RADIUS, abs=1e-9) and (y, yaw) == (0.3, 0.0)
+    assert twist_of(graph.odom()) == (0.0, 0.0)
+    probe.send(0.5, 0.0)  # into the wall again: it stays
+    graph.step_for(0.5)
+    assert graph.pose()[0] == pytest.approx(2.0 - RADIUS, abs=1e-9)
+    probe.send(-0.3, 0.0)
+    graph.step_for(1.0)
+    assert graph.pose()[0] == pytest.approx(2.0 - RADIUS - 0.3, abs=1e-9)
+    warnings = [line for line in capfd.readouterr().err.splitlines() if 'Hit a wall' in line]
+    assert len(warnings) == 1 and '(1.895, 0.300) in map' in warnings[0]
+
+
+def test_a_robot_on_an_arc_stops_where_its_arc_meets_the_wall(graph):
+    graph.sim(map_file=ROOM, initial_x=0.5, initial_y=1.0, cmd_vel_timeout=0.0)
+    probe = graph.probe()
+    probe.send(0.5, 0.2)  # a circle of radius 2.5 about (0.5, 3.5)
+    graph.step_for(5.0)
+    x, y, yaw = graph.pose()
+    turned = math.asin((2.0 - RADIUS - 0.5) / 2.5)  # where the centre is RADIUS from x = 2.0
+    assert x == pytest.approx(2.0 - RADIUS, abs=1e-9)
+    assert y == pytest.approx(3.5 - 2.5 * math.cos(turned), abs=1e-9)
+    assert yaw == pytest.approx(turned, abs=1e-9)
+    assert twist_of(graph.odom()) == (0.0, 0.0)
+
+
+def test_two_robots_see_each_other_and_stop_on_contact(graph):
+    graph.sim(map_file=ROOM, robots=['a', 'b'], cmd_vel_timeout=0.0,
+              initial_poses=[0.3, 1.0, 0.0, 1.3, 1.0, math.pi])
+    graph.step_for(0.2)
+    # Beam 180 looks along the heading: the other robot's disc, 1.0 - RADIUS away.
+    assert graph.scan('a').ranges[180] == pytest.approx(1.0 - RADIUS, abs=1e-6)
+    assert graph.scan('b').ranges[180] == pytest.approx(1.0 - RADIUS, abs=1e-6)
+    probe = graph.probe(namespace='a')
+    probe.send(0.2, 0.0)
+    graph.step_for(5.0)
+    assert graph.pose('a')[0] == pytest.approx(1.3 - 2 * RADIUS, abs=1e-6)
+    assert graph.pose('b')[0] == 1.3
+    assert twist_of(graph.odom('a')) == (0.0, 0.0)
+
+
+def test_initialpose_in_the_map_moves_map_to_odom_and_keeps_odometry_continuous(graph):
+    graph.sim(map_file=ROOM, initial_x=0.5, initial_y=0.3)
+    rviz = graph.add(Node('rviz', context=graph.context))
+    publisher = rviz.create_publisher(PoseWithCovarianceStamped, 'initialpose', 10)
+    transforms = {}
+    rviz.create_subscription(TFMessage, '/tf', lambda msg: transforms.update(
+        {(t.header.frame_id, t.child_frame_id): t for t in msg.transforms}), 100)
+    graph.step_for(0.2)
+    publisher.publish(pose_estimate('map', 1.0, 2.0, math.pi / 2))
+    graph.step_for(0.5)
+    assert graph.pose() == (0.5, 0.3, 0.0)  # odometry goes on where it was
+    assert_scan_is(graph.scan(), expected_ranges(1.0, 2.0, math.pi / 2))
+    map_odom = transforms[('map', 'odom')].transform
+    # map -> odom turns the odometry pose (0.5, 0.3, 0) into the map pose (1, 2, pi/2).
+    assert map_odom.translation.x == pytest.approx(1.0 + 0.3, abs=1e-12)
+    assert map_odom.translation.y == pytest.approx(2.0 - 0.5, abs=1e-12)
+    assert map_odom.rotation.z == pytest.approx(math.sin(math.pi / 4), abs=1e-12)
+
+
+def test_the_tf_chain_runs_from_the_map_to_each_robots_scanner(graph):
+    graph.sim(map_file=ROOM, robots=['r1', 'r2'], initial_poses=[0.0, 0.0, 0.0, 1.0, 1.0, 0.0])
+    listener = graph.add(Node('listener', context=graph.context))
+    edges = set()
+    for topic, qos in (('/tf', 100), ('/tf_static', LATCHED_QOS)):
+        listener.create_subscription(TFMessage, topic, lambda msg: edges.update(
+            (t.header.frame_id, t.child_frame_id) for t in msg.transforms), qos)
+    graph.step_for(0.2)
+    # The static transforms were sent before this listener came: they arrive on discovery.
+    graph.spin_until(lambda: ('r2/base_footprint', 'r2/base_scan') in edges, timeout=10.0)
+    for robot in ('r1', 'r2'):
+        for edge in (('map', f'{robot}/odom'), (f'{robot}/odom', f'{robot}/base_footprint'),
+                     (f'{robot}/base_footprint', f'{robot}/base_scan')):
+            assert edge in edges
+    assert graph.scan('r1').header.frame_id == 'r1/base_scan'
+
+
+def scans_with(seed, steps=0.5):
+    with SimGraph() as graph:
+        graph.sim(map_file=ROOM, scan_noise_std=0.01, seed=seed, initial_x=0.5,
+                  initial_y=0.3)
+        seen = []
+        node = graph.add(Node('noise', context=graph.context))
+        from sensor_msgs.msg import LaserScan
+        node.create_subscription(LaserScan, 'scan', lambda msg: seen.append(
+            np.array(msg.ranges, dtype=np.float32).tobytes()), 10)
+        graph.step_for(steps)
+        return seen
+
+
+def test_seeded_noise_repeats_bit_for_bit_and_another_seed_differs():
+    first, again, other = scans_with(7), scans_with(7), scans_with(8)
+    assert len(first) >= 4 and first == again
+    assert first[0] != other[0]
+    exact = np.array(expected_ranges(0.5, 0.3, 0.0), dtype=np.float32)
+    noisy = np.frombuffer(first[0], dtype=np.float32)
+    assert 0.005 < float(np.std(noisy - exact)) < 0.02  # the noise asked for
+
+
+def test_a_late_subscriber_gets_the_map(graph):
+    graph.sim(map_file=ROOM)
+    graph.step_for(1.0)
+    late = graph.add(Node('late', context=graph.context))
+    maps = []
+    late.create_subscription(OccupancyGrid, 'map', maps.append, LATCHED_QOS)
+    graph.spin_until(lambda: maps, timeout=10.0)
+    (grid,) = maps
+    assert (grid.info.width, grid.info.height) == (80, 60)
+    assert grid.info.resolution == np.float32(0.05)  # a float32 field
+    assert grid.header.frame_id == 'map'
+    assert (grid.info.origin.position.x, grid.info.origin.position.y) == (-0.5, -0.5)
+    data = np.array(grid.data, dtype=np.int8).reshape(60, 80)
+    assert (data[0] == 100).all() and (data[30, 1:49] == 0).all() and data[30, 50] == 100
+
+
+def bad_world(tmp_path, **params):
+    with pytest.raises(ParameterError) as refused:
+        from rclpy.context import Context
+        import rclpy
+        context = Context()
+        rclpy.init(context=context, domain_id=0)
+        try:
+            from rclpy.parameter import Parameter
+            UnicycleSim(context=context, parameter_overrides=[
+                Parameter(name, value=value) for name, value in params.items()])
+        finally:
+            rclpy.try_shutdown(context=context)
+    return str(refused.value)
+
+
+def test_bad_worlds_are_refused_by_name(tmp_path):
+    assert 'map_file' in bad_world(tmp_path, map_file=str(tmp_path / 'missing.yaml'))
+    (tmp_path / 'no_resolution.yaml').write_text('image: room.pgm\norigin: [0, 0, 0]\n')
+    assert 'resolution' in bad_world(tmp_path, map_file=str(tmp_path / 'no_resolution.yaml'))
+    (tmp_path / 'no_image.yaml').write_text('resolution: 0.05\norigin: [0, 0, 0]\n')
+    assert 'image' in bad_world(tmp_path, map_file=str(tmp_path / 'no_image.yaml'))
+    (tmp_path / 'text.pgm').write_text('not an image')
+    (tmp_path / 'text.yaml').write_text('image: text.pgm\nresolution: 0.05\n'
+                                        'origin: [0, 0, 0]\n')
+    assert 'text.pgm' in bad_world(tmp_path, map_file=str(tmp_path / 'text.yaml'))
+    (tmp_path / 'thresholds.yaml').write_text(
+        f'image: {ROOM[:-4]}pgm\nresolution: 0.05\norigin: [0, 0, 0]\n'
+        'occupied_thresh: 0.2\nfree_thresh: 0.6\n')
+    assert 'thresh' in bad_world(tmp_path, map_file=str(tmp_path / 'thresholds.yaml'))
+    in_wall = bad_world(tmp_path, map_file=ROOM, initial_x=2.05, initial_y=1.0)
+    assert 'wall' in in_wall and '(2.050, 1.000)' in in_wall
+    on_robot = bad_world(tmp_path, map_file=ROOM, robots=['a', 'b'],
+                         initial_poses=[0.0, 0.0, 0.0, 0.1, 0.0, 0.0])
+    assert 'on a' in on_robot or 'on b' in on_robot
+    assert 'scan_range_min' in bad_world(tmp_path, map_file=ROOM, scan_range_min=3.0,
+                                         scan_range_max=2.0)
