@@ -25,6 +25,7 @@ the simulator says so once and runs on.
 import errno
 import functools
 import os
+from pathlib import Path as FilePath
 import signal
 
 from geometry_msgs.msg import Twist
@@ -44,6 +45,7 @@ from tf2_msgs.msg import TFMessage
 mcap_reader = pytest.importorskip('mcap.reader')
 recorder = pytest.importorskip('sim_diffdrive.taps.recorder')
 
+ROOM = str(FilePath(__file__).resolve().parents[1] / 'maps' / 'room.yaml')
 TYPES = {'/cmd_vel': Twist, '/odom': Odometry, '/tf': TFMessage, '/clock': Clock, '/path': Path}
 COMMANDS = [(0.4, 0.0), (0.3, 0.5), (0.0, -0.8)]
 
@@ -140,6 +142,32 @@ def test_a_generic_ros2_reader_decodes_every_message(graph, tmp_path):
     assert odom.header.frame_id == 'odom' and odom.pose.pose.position.x > 0.0
     assert decoded['/cmd_vel'][0].linear.x == 0.5
     assert decoded['/tf'][-1].transforms[0].child_frame_id == odom.child_frame_id
+
+
+def test_a_run_in_a_map_records_the_map_and_the_scans(graph, tmp_path):
+    decoder = pytest.importorskip('mcap_ros2.decoder')
+    path = tmp_path / 'run.mcap'
+    sim = graph.sim(map_file=ROOM, record_file=str(path))
+    graph.step_for(0.5)
+    graph.remove(sim)
+    with open(path, 'rb') as stream:
+        reader = mcap_reader.make_reader(stream, decoder_factories=[decoder.DecoderFactory()])
+        schemas = {channel.topic: (schema.name, schema.encoding)
+                   for schema, channel, _ in reader.iter_messages(log_time_order=False)}
+        stream.seek(0)
+        reader = mcap_reader.make_reader(stream, decoder_factories=[decoder.DecoderFactory()])
+        decoded = {}
+        for _, channel, _, msg in reader.iter_decoded_messages():
+            decoded.setdefault(channel.topic, []).append(msg)
+    assert schemas['/scan'] == ('sensor_msgs/msg/LaserScan', 'ros2msg')
+    assert schemas['/map'] == ('nav_msgs/msg/OccupancyGrid', 'ros2msg')
+    assert schemas['/tf_static'] == ('tf2_msgs/msg/TFMessage', 'ros2msg')
+    scan = decoded['/scan'][-1]
+    assert len(scan.ranges) == 360 and scan.header.frame_id == 'base_scan'
+    (room,) = decoded['/map']
+    assert (room.info.width, room.info.height) == (80, 60) and len(room.data) == 80 * 60
+    assert room.header.frame_id == 'map'
+    assert decoded['/tf_static'][0].transforms[0].child_frame_id == 'base_scan'
 
 
 @pytest.mark.parametrize('signum', [signal.SIGTERM, signal.SIGINT], ids=['SIGTERM', 'SIGINT'])

@@ -190,7 +190,7 @@ class UnicycleSim(Node):
         self._types_checked_at = -TYPE_CHECK_S  # (monotonic time) the first step looks
         self.create_service(Empty, '~/reset', self._on_reset)
         if self.surroundings:
-            self.surroundings.start(self._frames(), self.now_ns())
+            self.surroundings.start(self._frames(), self.now_ns(), self.taps)
         self.clock.start()
         where = (f"{len(names)} robots ({', '.join(names)})" if p.robots else
                  f'Unicycle at ({p.initial_x:.3f}, {p.initial_y:.3f}, {p.initial_yaw:.3f} rad)')

@@ -123,14 +123,22 @@ class Surroundings:
         self._tf_pub = node.create_publisher(TFMessage, TF_TOPIC, TF_QOS)
         self._map_layout = None
 
-    def start(self, frames, stamp_ns):
-        """Publish the map and base -> scan (frames: (odom, base) per robot) at stamp_ns."""
-        self._map_pub.publish(self.map_message(stamp_ns))
+    def start(self, frames, stamp_ns, taps=None):
+        """
+        Publish the map and base -> scan (frames: (odom, base) per robot) at stamp_ns.
+
+        The taps (the node's, see taps/) get both too, so a recording holds the map.
+        """
+        map_msg = self.map_message(stamp_ns)
+        self._map_pub.publish(map_msg)
         self.set_frames(frames)
         static = TFMessage()
         static.transforms = [self._identity(base, scan, stamp_ns)
                              for (_, base), scan in zip(frames, self._scan_frames)]
         self._static_pub.publish(static)
+        if taps:
+            taps.write(self._map_pub.topic_name, map_msg, stamp_ns)
+            taps.write(self._static_pub.topic_name, static, stamp_ns)
 
     def set_frames(self, frames):
         """Lay map -> odom out anew for frames, (odom, base) per robot."""
