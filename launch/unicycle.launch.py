@@ -19,6 +19,7 @@ Start unicycle_sim owning the clock, and optionally a motion on its time and RVi
     ros2 launch motion_challenges unicycle.launch.py motion:=odom_out_and_back rviz:=true
     ros2 launch motion_challenges unicycle.launch.py motion:=rotate_robot real_time_factor:=5.0
     ros2 launch motion_challenges unicycle.launch.py namespace:=robot1 rviz:=true
+    ros2 launch motion_challenges unicycle.launch.py map:=maps/room.yaml rviz:=true
     ros2 launch motion_challenges unicycle.launch.py robots:=[robot1,robot2] \
         motion:=odom_out_and_back rviz:=true
 
@@ -27,11 +28,13 @@ config (rotate_robot's answers are in it, so nothing prompts); the launch shuts 
 ends.  ``namespace`` puts every node in it (topics /robot1/odom, frames robot1/odom ->
 robot1/base_footprint, as the simulator names them).  ``robots`` simulates a fleet (each
 robot's topics and frames under its name) and runs the motion on every robot with
-motion_fleet.  ``params_file`` is given to every node after the launch's own values, so its
+motion_fleet.  ``map`` (a map_server YAML) is the simulator's ``map_file``: the robots drive in
+that map, and RViz shows it and each robot's scan.  ``params_file`` is given to every node after the launch's own values, so its
 sections (``unicycle_sim:``, ``/**/odom_out_and_back:``) win.  RViz shows the robot from its
 odometry frame; for a namespace or a fleet the launch writes a copy of rviz/unicycle.rviz
 with the robots' frames and topics (sim_diffdrive/taps/rviz_config.py), and for a fleet ties
-every robot's odometry frame to ``world`` with a static transform, so one view shows them all.
+every robot's odometry frame to ``world`` with a static transform, so one view shows them all
+(with a map, whose frame is already each odometry frame's parent, the fleet is seen from it).
 """
 
 import os
@@ -53,6 +56,7 @@ from sim_diffdrive.taps.rviz_config import rviz_config
 import yaml
 
 PACKAGE = 'motion_challenges'
+MAP_FRAME = 'map'  # unicycle_sim's map_frame_id
 MOTIONS = ('rotate_robot', 'circle_back_and_forth', 'timed_out_and_back', 'odom_out_and_back')
 
 
@@ -72,7 +76,7 @@ def motion_parameters(motion):
 def launch_actions(context):
     """Return the simulator, the motion (one per robot for a fleet) and RViz, as asked."""
     value = {name: LaunchConfiguration(name).perform(context) for name in (
-        'namespace', 'params_file', 'robots', 'motion', 'real_time_factor', 'rviz')}
+        'namespace', 'params_file', 'robots', 'motion', 'real_time_factor', 'rviz', 'map')}
     namespace, motion = value['namespace'].strip('/'), value['motion']
     node_namespace = namespace or None  # (no namespace rather than an empty one)
     robots = robot_names(value['robots'])
@@ -82,6 +86,8 @@ def launch_actions(context):
     sim = {'publish_clock': True, 'real_time_factor': float(value['real_time_factor'])}
     if robots:
         sim['robots'] = robots
+    if value['map']:  # absolute, as the simulator may not start where the launch was asked
+        sim['map_file'] = os.path.abspath(os.path.expanduser(value['map']))
     actions = [Node(package=PACKAGE, executable='unicycle_sim', namespace=node_namespace,
                     output='screen', parameters=[sim, *user_file])]
     if motion:
@@ -97,21 +103,27 @@ def launch_actions(context):
             target_action=node,
             on_exit=[EmitEvent(event=Shutdown(reason=f'{motion} finished'))]))]
     if value['rviz'].lower() in ('true', '1', 'yes'):
-        actions += rviz_actions(namespace, robots)
+        actions += rviz_actions(namespace, robots, with_map=bool(value['map']))
     return actions
 
 
-def rviz_actions(namespace, robots):
-    """Return RViz with the configuration for namespace and robots (and the fleet's frames)."""
+def rviz_actions(namespace, robots, with_map=False):
+    """
+    Return RViz with the configuration for namespace and robots (and the fleet's frames).
+
+    A fleet in a map is seen from the map frame, every odometry frame's parent already.
+    """
     config = os.path.join(get_package_share_directory(PACKAGE), 'rviz', 'unicycle.rviz')
     actions = []
+    fleet_in_map = bool(robots) and with_map
     if namespace or robots:
         with open(config) as template:
-            text = rviz_config(template.read(), namespace, robots)
+            text = rviz_config(template.read(), namespace, robots,
+                               fixed_frame=MAP_FRAME if fleet_in_map else None)
         handle, config = tempfile.mkstemp(prefix='unicycle_', suffix='.rviz')
         with os.fdopen(handle, 'w') as generated:
             generated.write(text)
-    if robots:
+    if robots and not fleet_in_map:
         for view in robot_views(namespace, robots):
             actions.append(Node(
                 package='tf2_ros', executable='static_transform_publisher',
@@ -138,6 +150,12 @@ def generate_launch_description():
                               description='Namespace of every node: topics /<namespace>/odom, '
                                           'frames <namespace>/odom -> '
                                           '<namespace>/base_footprint.'),
+        DeclareLaunchArgument('map', default_value='',
+                              description='A map_server YAML (e.g. maps/room.yaml) for the '
+                                          "simulator's map_file: the robots drive in that map, "
+                                          'stop at its walls and scan it; RViz shows the map '
+                                          "and each robot's scan. Empty = no map (the empty "
+                                          'plane).'),
         DeclareLaunchArgument('params_file', default_value='',
                               description='ROS 2 parameters file for every node, applied after '
                                           "the launch's own values (e.g. "

@@ -36,7 +36,7 @@ import yaml
 ROOT = Path(__file__).resolve().parents[1]
 LAUNCH_FILE = ROOT / 'launch' / 'unicycle.launch.py'
 RVIZ_FILE = ROOT / 'rviz' / 'unicycle.rviz'
-ARGUMENTS = {'real_time_factor', 'motion', 'rviz', 'namespace', 'params_file', 'robots'}
+ARGUMENTS = {'real_time_factor', 'motion', 'rviz', 'namespace', 'params_file', 'robots', 'map'}
 
 
 def launch_tree():
@@ -96,6 +96,9 @@ def test_the_rviz_configuration_shows_the_robot_from_odom_on_relative_topics():
     assert displays['rviz_default_plugins/Path']['Topic']['Value'] == 'path'
     assert 'rviz_default_plugins/TF' in displays
     assert displays['rviz_default_plugins/Axes']['Reference Frame'] == 'base_footprint'
+    assert displays['rviz_default_plugins/LaserScan']['Topic']['Value'] == 'scan'
+    the_map = displays['rviz_default_plugins/Map']['Topic']
+    assert (the_map['Value'], the_map['Durability Policy']) == ('map', 'Transient Local')
     tools = {tool['Class']: tool for tool in manager['Tools']}
     assert tools['rviz_default_plugins/SetInitialPose']['Topic']['Value'] == 'initialpose'
 
@@ -108,6 +111,9 @@ def test_the_rviz_configuration_for_a_namespace_uses_its_frames_and_topics():
     assert displays['Odometry']['Topic']['Value'] == '/robot1/odom'
     assert displays['Driven path']['Topic']['Value'] == '/robot1/path'
     assert displays['Robot']['Reference Frame'] == 'robot1/base_footprint'
+    assert displays['LaserScan']['Topic']['Value'] == '/robot1/scan'
+    assert displays['Map']['Topic']['Value'] == '/robot1/map'
+    assert displays['Map']['Update Topic']['Value'] == '/robot1/map_updates'
     assert displays['Grid']['Reference Frame'] == '<Fixed Frame>'
     tools = {tool['Class']: tool for tool in manager['Tools']}
     assert tools['rviz_default_plugins/SetInitialPose']['Topic']['Value'] == '/robot1/initialpose'
@@ -124,9 +130,13 @@ def test_the_rviz_configuration_for_a_fleet_shows_every_robot_from_world():
         assert displays[f'Odometry {robot}']['Topic']['Value'] == f'/{robot}/odom'
         assert displays[f'Driven path {robot}']['Topic']['Value'] == f'/{robot}/path'
         assert displays[f'Robot {robot}']['Reference Frame'] == f'{robot}/base_footprint'
-    assert len(displays) == 2 + 3 * 2  # grid and TF once, three displays per robot
+        assert displays[f'LaserScan {robot}']['Topic']['Value'] == f'/{robot}/scan'
+    assert displays['Map']['Topic']['Value'] == '/map'  # one map for the fleet
+    assert len(displays) == 3 + 4 * 2  # grid, map and TF once, four displays per robot
     # A pose set in RViz is in its fixed frame, world, which no robot takes: no pose tool.
     assert [tool['Class'] for tool in manager['Tools']] == ['rviz_default_plugins/MoveCamera']
+    in_map = yaml.safe_load(rviz_config(RVIZ_FILE.read_text(), '', ['robot1'], fixed_frame='map'))
+    assert in_map['Visualization Manager']['Global Options']['Fixed Frame'] == 'map'
 
 
 @pytest.mark.parametrize('namespace, robots', [
@@ -134,13 +144,24 @@ def test_the_rviz_configuration_for_a_fleet_shows_every_robot_from_world():
 def test_the_rviz_frames_and_topics_are_the_simulators(ros_context, namespace, robots):
     from rclpy.parameter import Parameter
     from sim_diffdrive.sim.node import UnicycleSim
+    room = str(ROOT / 'maps' / 'room.yaml')
+    apart = [value for i in range(len(robots)) for value in (0.5 * i, 0.0, 0.0)]  # in the room
+    overrides = [Parameter('robots', value=robots), Parameter('map_file', value=room)]
+    if robots:
+        overrides.append(Parameter('initial_poses', value=apart))
     sim = UnicycleSim(context=ros_context, namespace=namespace or None,
-                      parameter_overrides=[Parameter('robots', value=robots)])
+                      parameter_overrides=overrides)
     try:
-        for robot, view in zip(sim.robots, robot_views(namespace, robots), strict=True):
+        views = robot_views(namespace, robots)
+        for robot, view, scan_pub in zip(sim.robots, views, sim.surroundings.scan_pubs,
+                                         strict=True):
             assert (view.odom_frame, view.base_frame) == robot.frames
             assert f'{view.topics}/odom' == robot.odom_pub.topic_name
             assert f'{view.topics}/path' == robot.path_pub.topic_name
+            assert f'{view.topics}/scan' == scan_pub.topic_name
+        config = yaml.safe_load(rviz_config(RVIZ_FILE.read_text(), namespace, robots))
+        the_map = displays_of(config)['Map']['Topic']['Value']
+        assert the_map.lstrip('/') == sim.surroundings._map_pub.topic_name.lstrip('/')
     finally:
         sim.destroy_node()
 

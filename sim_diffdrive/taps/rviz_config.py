@@ -20,9 +20,12 @@ The installed configuration shows one robot in the root namespace (relative topi
 and, for each robot of ``robots``, with the robot's name (sim/odom_tf.py, sim/robot.py):
 ``robot1/odom`` -> ``robot1/base_footprint``.  ``rviz_config`` writes a copy for a namespace
 (fixed frame and the robot's frame from the namespace, topics absolute) or for a fleet: the
-odometry, path and base-frame displays once per robot, on a fixed frame ``world`` that the
-launch file ties to every robot's odometry frame (identity transforms), so one view shows
-every robot through TF.  No ROS imports: launch/unicycle.launch.py and the tests use it.
+odometry, path, scan and base-frame displays once per robot, on a fixed frame ``world`` that
+the launch file ties to every robot's odometry frame (identity transforms), so one view shows
+every robot through TF; with the simulator's map, whose frame is already every odometry frame's
+parent, on the fixed frame ``map`` instead (``fixed_frame``).  The map is the simulator's, one
+for every robot: its display reads it in the namespace.  No ROS imports:
+launch/unicycle.launch.py and the tests use it.
 """
 
 import collections
@@ -34,7 +37,10 @@ FLEET_FRAME = 'world'
 ODOM_FRAME = 'odom'
 BASE_FRAME = 'base_footprint'
 _PER_ROBOT = ('rviz_default_plugins/Odometry', 'rviz_default_plugins/Path',
-              'rviz_default_plugins/Axes')
+              'rviz_default_plugins/Axes', 'rviz_default_plugins/LaserScan')
+# Displays of the simulator's own topics (the map), in its namespace rather than per robot.
+_PER_SIMULATOR = ('rviz_default_plugins/Map',)
+_TOPIC_KEYS = ('Topic', 'Update Topic')
 _POSE_TOOL = 'rviz_default_plugins/SetInitialPose'
 
 RobotView = collections.namedtuple('RobotView', 'name odom_frame base_frame topics')
@@ -46,7 +52,8 @@ def robot_views(namespace='', robots=()):
 
     Frames as unicycle_sim names its default ones in namespace (``/site`` -> ``site/odom``) and
     for each robot (``robot1/site/odom``); topics the absolute namespace of the robot's
-    ``odom``, ``path`` and ``initialpose`` (``/site/robot1``, or ``''`` at the root).
+    ``odom``, ``path``, ``scan`` and ``initialpose`` (``/site/robot1``, or ``''`` at the
+    root).
     """
     prefix = namespace.strip('/')
     views = []
@@ -58,14 +65,24 @@ def robot_views(namespace='', robots=()):
     return views
 
 
-def rviz_config(template, namespace='', robots=()):
-    """Return the RViz configuration template (YAML text) rewritten for namespace and robots."""
+def rviz_config(template, namespace='', robots=(), fixed_frame=None):
+    """
+    Return the RViz configuration template (YAML text) rewritten for namespace and robots.
+
+    fixed_frame replaces the fixed frame (``world`` for a fleet, else the robot's odometry
+    frame), e.g. the simulator's map frame.
+    """
     config = yaml.safe_load(template)
     views = robot_views(namespace, robots)
     manager = config['Visualization Manager']
-    manager['Global Options']['Fixed Frame'] = FLEET_FRAME if robots else views[0].odom_frame
+    manager['Global Options']['Fixed Frame'] = fixed_frame or (
+        FLEET_FRAME if robots else views[0].odom_frame)
+    prefix = namespace.strip('/')
     displays = []
     for display in manager['Displays']:
+        if display['Class'] in _PER_SIMULATOR:
+            displays.append(_with_topics(display, f'/{prefix}' if prefix else ''))
+            continue
         if display['Class'] not in _PER_ROBOT:
             displays.append(display)
             continue
@@ -88,14 +105,21 @@ def rviz_config(template, namespace='', robots=()):
 
 
 def _for_robot(display, view, label):
-    display = copy.deepcopy(display)
+    display = _with_topics(display, view.topics)
     if label:
         display['Name'] = f"{display['Name']} {view.name}"
-    if 'Topic' in display:
-        topic = display['Topic']['Value'].lstrip('/')
-        display['Topic']['Value'] = f'{view.topics}/{topic}'
     if display['Class'] == 'rviz_default_plugins/Axes':
         display['Reference Frame'] = view.base_frame
+    return display
+
+
+def _with_topics(display, topics):
+    """Return a copy of display reading its topics under topics (absolute: '/site', or '')."""
+    display = copy.deepcopy(display)
+    for key in _TOPIC_KEYS:
+        if key in display:
+            topic = display[key]['Value'].lstrip('/')
+            display[key]['Value'] = f'{topics}/{topic}'
     return display
 
 
