@@ -29,8 +29,9 @@ ends.  ``namespace`` puts every node in it (topics /robot1/odom, frames robot1/o
 robot1/base_footprint, as the simulator names them).  ``robots`` simulates a fleet (each
 robot's topics and frames under its name) and runs the motion on every robot with
 motion_fleet.  ``map`` (a map_server YAML) is the simulator's ``map_file``: the robots drive in
-that map, and RViz shows it and each robot's scan.  ``params_file`` is given to every node after the launch's own values, so its
-sections (``unicycle_sim:``, ``/**/odom_out_and_back:``) win.  RViz shows the robot from its
+that map, and RViz shows it and each robot's scan.  ``params_file`` is given to every node
+after the launch's own values, so its sections (``unicycle_sim:``, ``/**/odom_out_and_back:``)
+win.  RViz shows the robot from its
 odometry frame; for a namespace or a fleet the launch writes a copy of rviz/unicycle.rviz
 with the robots' frames and topics (sim_diffdrive/taps/rviz_config.py), and for a fleet ties
 every robot's odometry frame to ``world`` with a static transform, so one view shows them all

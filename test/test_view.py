@@ -28,6 +28,7 @@ import importlib.util
 import io
 import math
 import os
+from pathlib import Path
 import re
 import shutil
 import signal
@@ -40,7 +41,10 @@ import numpy as np
 import pytest
 from sim_diffdrive import harness
 from sim_diffdrive.taps.view import robot_colors
+from sim_diffdrive.taps.view import scan_points
+from sim_diffdrive.taps.view import solid_boxes
 from sim_diffdrive.taps.view_page import confine
+from sim_diffdrive.world.grid import GridMap
 
 # Asked of the import system rather than imported: rerun takes 0.6 CPU s to import, which each
 # pytest worker would pay while collecting.
@@ -52,6 +56,7 @@ CHROMIUM_FLAGS = [
     '--no-sandbox', '--enable-unsafe-swiftshader', '--use-angle=swiftshader',
     '--ignore-gpu-blocklist', '--disable-background-networking', '--disable-component-update',
     '--disable-sync', '--no-first-run']
+ROOM = str(Path(__file__).resolve().parents[1] / 'maps' / 'room.yaml')
 PAGE_SIZE = {'width': 800, 'height': 500}
 # The top view fills the left three fifths of the page, under the viewer's menu bar.
 TOP_VIEW = (slice(60, 470), slice(0, 470))
@@ -194,6 +199,34 @@ def test_a_client_that_leaves_mid_run_disturbs_nothing(graph):
         assert b're_viewer.js' in answer.read()
 
 
+def test_a_scan_becomes_its_finite_hit_points_in_the_frame_of_the_poses():
+    angles = np.array([-math.pi, -0.5 * math.pi, 0.0, 0.5 * math.pi])
+    ranges = np.array([[1.0, np.inf, 2.0, -np.inf],   # at (0, 0) facing +x
+                       [np.nan, 0.5, 1.5, 0.25]], np.float32)  # at (1, 2) facing +y
+    points, owners = scan_points(ranges, angles, [0.0, 1.0], [0.0, 2.0], [0.0, 0.5 * math.pi])
+    assert owners.tolist() == [0, 0, 1, 1, 1]
+    assert points == pytest.approx(np.array(
+        [[-1.0, 0.0], [2.0, 0.0], [1.5, 2.0], [1.0, 3.5], [0.75, 2.0]]), abs=1e-6)
+
+
+def test_the_obstacle_cells_are_drawn_as_a_box_per_run_along_a_row():
+    grid = GridMap.from_rows(['##.#', '....', '.###'], resolution=0.5, origin=(1.0, 2.0, 0.0))
+    centers, half_sizes = solid_boxes(grid)
+    # Row 0 (the bottom) holds cols 1-3; row 2 (the top) cols 0-1 and col 3.
+    assert centers[:, :2].tolist() == [[2.25, 2.25], [1.5, 3.25], [2.75, 3.25]]
+    assert half_sizes[:, :2].tolist() == [[0.75, 0.25], [0.5, 0.25], [0.25, 0.25]]
+
+
+def test_a_run_in_a_map_is_drawn_without_failing(graph):
+    sim = graph.sim(view_port=free_port(), map_file=ROOM, robots=['a', 'b'],
+                    initial_poses=[0.0, 0.0, 0.0, 1.0, 1.0, 0.0])
+    view = sim.taps.named('view_port')
+    graph.step_for(0.5)  # five scans, drawn by the sending thread
+    assert view._frames.in_map and view._ranges.shape == (2, 360)
+    graph.remove(sim)  # closing draws the rest
+    assert view._failure is None
+
+
 def test_the_page_allows_this_machine_only(graph):
     port = free_port()
     sim = graph.sim(view_port=port)
@@ -271,9 +304,9 @@ def test_the_rerun_program_ends_with_a_killed_owner(tmp_path):
     code = ('import sys, time, types\n'
             'import numpy as np\n'
             'from sim_diffdrive.taps.view import BrowserView\n'
-            "fleet = types.SimpleNamespace(x=np.zeros(1), y=np.zeros(1), names=[''])\n"
+            "world = types.SimpleNamespace(x=np.zeros(1), y=np.zeros(1), names=[''])\n"
             'node = types.SimpleNamespace(\n'
-            '    params=types.SimpleNamespace(publish_clock=True), fleet=fleet,\n'
+            '    params=types.SimpleNamespace(publish_clock=True), world=world,\n'
             '    get_parameter=lambda name: types.SimpleNamespace(value=False),\n'
             '    get_logger=lambda: types.SimpleNamespace(info=print))\n'
             'BrowserView(0, node)\n'

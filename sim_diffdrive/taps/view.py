@@ -23,8 +23,12 @@ files, confined to this machine, following the next run on the port) and logs to
 with the SDK, one recording per run:
 
 - ``world/robots`` and ``world/heading``: each robot as a box turned to its yaw and an arrow
-  along its heading, in its odometry frame, seen from above with x to the right and y up
-  (REP 103, as RViz shows it; Rerun's 2D view would draw y down);
+  along its heading, in its odometry frame (with the simulator's map_file: in the map frame),
+  seen from above with x to the right and y up (REP 103, as RViz shows it; Rerun's 2D view
+  would draw y down);
+- ``world/map`` (with map_file): the map's obstacle cells, a box per run of them along a row,
+  logged once (static); ``world/scan``: every robot's newest scan as its hit points in the map
+  frame (finite ranges only), in the robot's colour, at the scan rate, one call for all;
 - ``world/paths``: each robot's path since the last frame, shown with all the earlier pieces
   (the view keeps that entity's whole history visible), so a frame sends the newest piece,
   never the whole path; a jump (a reset) is not joined by a line;
@@ -73,6 +77,11 @@ STOP_TIMEOUT_S = 3.0
 BODY_HALF_SIZE = (0.15, 0.12, 0.05)
 ARROW_LENGTH = 0.35
 PATH_RADIUS = 0.01
+# The map's obstacle cells as drawn: flat slabs just under the robots; the scan's hit points.
+MAP_HALF_HEIGHT = 0.02
+MAP_RGB = (150, 150, 150)
+SCAN_RADIUS = 0.015
+SCAN_Z = 0.03
 # A step longer than its robot can have driven is a jump (a reset): no path segment joins it.
 _JUMP_MARGIN_M = 1e-3
 # More robots than these: no name labels in the view, no legend in the plots (they pile up).
@@ -103,6 +112,14 @@ class BrowserView:
         self._lock = threading.Lock()
         self._stop = threading.Event()
         self._failure = None  # why the view stopped, for the simulator to report
+        surroundings = getattr(node, 'surroundings', None)
+        grid = surroundings.grid if surroundings is not None else None
+        # With a map: each robot's scan topic -> its row, this step's ranges, the newest scan.
+        self._scan_rows = ({pub.topic_name: i for i, pub in enumerate(surroundings.scan_pubs)}
+                           if surroundings is not None else {})
+        self._ranges = self._angles = self._scan = None
+        self._scan_fresh = False
+        self._colors = robot_colors(len(node.world.names))
         try:
             grpc_port, files_port = _grpc_port(host, port), _free_port(host)
             run = uuid.uuid4()
@@ -116,12 +133,13 @@ class BrowserView:
             # Simulated time is the one that matters; the wall clock of logging would only
             # show as a second timeline and a "latency" of up to a frame plus the page's load.
             rr.set_log_time_enabled(False, recording=self._rec)
-            self._rec.connect_grpc(self.grpc_url, default_blueprint=_blueprint(node.world))
-            self._log_static(node.world.names)
+            self._rec.connect_grpc(self.grpc_url,
+                                   default_blueprint=_blueprint(node.world, grid))
+            self._log_static(node.world.names, grid)
         except BaseException:
             self.close()
             raise
-        self._frames = _Frames(len(node.world.names))
+        self._frames = _Frames(len(node.world.names), in_map=grid is not None)
         self._thread = threading.Thread(target=self._send_frames, name='browser_view',
                                         daemon=True)
         self._thread.start()
@@ -168,17 +186,42 @@ class BrowserView:
     # -- the simulator's side: a few microseconds per step ---------------------------------
 
     def write(self, topic, msg, stamp_ns):
-        """Messages one by one are not drawn: step() draws the whole fleet at once."""
+        """
+        Keep a robot's scan for step() to draw; the rest is drawn by step(), fleet at once.
+
+        The simulator publishes a step's scans before it hands the step over, so the scan is
+        drawn from the pose the step gives.
+        """
+        row = self._scan_rows.get(topic)
+        if row is None or isinstance(msg, bytes):
+            return
+        ranges = np.frombuffer(msg.ranges, dtype=np.float32)
+        if self._ranges is None or self._ranges.shape[1] != len(ranges):
+            self._ranges = np.full((len(self._scan_rows), len(ranges)), np.inf, np.float32)
+            self._angles = msg.angle_min + msg.angle_increment * np.arange(len(ranges))
+        self._ranges[row] = ranges
+        self._scan_fresh = True
 
     def step(self, stamp_ns, fleet):
-        """Keep every robot's state at stamp_ns for the next frame."""
+        """Keep every robot's state at stamp_ns (and the step's scans) for the next frame."""
         if self._failure is not None:
             raise OSError(self._failure)
         with self._lock:
             frames = self._frames
             if frames.full:  # the sending thread is starved: send from here
-                self._log(frames.take())
+                self._log(frames.take(), self._take_scan())
             frames.add(stamp_ns, fleet)
+            if self._scan_fresh:  # drawn from the poses just kept (the map frame's)
+                self._scan_fresh = False
+                last = frames.steps - 1
+                self._scan = (stamp_ns, self._ranges.copy(), self._angles,
+                              frames.x[last].copy(), frames.y[last].copy(),
+                              frames.yaw[last].copy())
+
+    def _take_scan(self):
+        """Return the newest scan not drawn yet, or None (with the lock held)."""
+        scan, self._scan = self._scan, None
+        return scan
 
     # -- the sending thread: at most FRAME_PERIOD_S apart -----------------------------------
 
@@ -188,23 +231,26 @@ class BrowserView:
                 if self._process.poll() is not None:
                     raise OSError(f'the rerun program stopped ({self._log_tail()})')
                 with self._lock:
-                    frame = self._frames.take()
-                self._log(frame)
+                    frame, scan = self._frames.take(), self._take_scan()
+                self._log(frame, scan)
             except Exception as error:  # reported by the next step(), which drops the view
                 self._failure = f'{type(error).__name__}: {error}'
                 return
 
-    def _log(self, frame):
-        """Log the poses of the frame's newest step, the path since the last frame, speeds."""
+    def _log(self, frame, scan=None):
+        """
+        Log the poses of the frame's newest step, the path since the last frame, speeds.
+
+        And scan, the newest scan since the last frame (or None), at its own stamp.
+        """
         if frame is None:
             return
         rr, rec = self._rr, self._rec
         stamps, x, y, yaw = frame.stamps, frame.x[-1], frame.y[-1], frame.yaw[-1]
+        self._set_time(stamps[-1])
         if self._sim_clock:
-            rec.set_time(TIMELINE, duration=int(stamps[-1]) * 1e-9)
             times = rr.TimeColumn(TIMELINE, duration=stamps * 1e-9)
         else:
-            rec.set_time(TIMELINE, timestamp=np.datetime64(int(stamps[-1]), 'ns'))
             times = rr.TimeColumn(TIMELINE, timestamp=stamps.astype('datetime64[ns]'))
         count = len(x)
         positions = np.zeros((count, 3))
@@ -227,13 +273,35 @@ class BrowserView:
             values = np.concatenate([achieved, commanded], axis=1).ravel()
             rec.send_columns(f'speed/{name}', indexes=[times],
                              columns=rr.Scalars.columns(scalars=values).partition(rows))
+        if scan is not None:
+            stamp, ranges, angles, scan_x, scan_y, scan_yaw = scan
+            points, owners = scan_points(ranges, angles, scan_x, scan_y, scan_yaw)
+            positions = np.full((len(points), 3), SCAN_Z)
+            positions[:, :2] = points
+            self._set_time(stamp)
+            rec.log('world/scan', rr.Points3D.from_fields(
+                positions=positions, colors=self._colors[owners]))
 
-    def _log_static(self, names):
-        """Log what does not change during the run: axes, colours, names, line styles."""
+    def _set_time(self, stamp_ns):
+        if self._sim_clock:
+            self._rec.set_time(TIMELINE, duration=int(stamp_ns) * 1e-9)
+        else:
+            self._rec.set_time(TIMELINE, timestamp=np.datetime64(int(stamp_ns), 'ns'))
+
+    def _log_static(self, names, grid=None):
+        """Log what does not change during the run: axes, colours, names, line styles, map."""
         rr, rec, count = self._rr, self._rec, len(names)
         colors = robot_colors(count)
         labels = [name or 'robot' for name in names]
         rec.log('world', rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
+        if grid is not None:
+            centers, half_sizes = solid_boxes(grid)
+            half = 0.5 * grid.origin[2]
+            rec.log('world/map', rr.Boxes3D(
+                centers=centers, half_sizes=half_sizes,
+                quaternions=[(0.0, 0.0, np.sin(half), np.cos(half))], colors=[MAP_RGB],
+                fill_mode=rr.components.FillMode.Solid), static=True)
+            rec.log('world/scan', rr.Points3D.from_fields(radii=[SCAN_RADIUS]), static=True)
         rec.log('world/robots', rr.Boxes3D.from_fields(
             half_sizes=[BODY_HALF_SIZE], colors=colors, labels=labels,
             show_labels=any(names) and count <= _LABELLED_ROBOTS), static=True)
@@ -257,7 +325,8 @@ class BrowserView:
                 thread.join()
                 if self._failure is None:
                     with self._lock:
-                        self._log(self._frames.take())  # the steps since the last frame
+                        # the steps (and the scan) since the last frame
+                        self._log(self._frames.take(), self._take_scan())
         finally:
             rec, self._rec = self._rec, None
             if rec is not None:
@@ -275,11 +344,20 @@ class BrowserView:
             atexit.unregister(self.close)
 
 
-def _blueprint(fleet):
-    """Return the layout: the robots from above (around where they start), beside their speeds."""
+def _blueprint(fleet, grid=None):
+    """
+    Return the layout: the robots from above, beside their speeds.
+
+    Seen around where the robots start, or with a map (grid) around the map.
+    """
     import rerun.blueprint as rrb
-    center = [float(np.mean(fleet.x)), float(np.mean(fleet.y)), 0.0]
-    span = float(max(np.ptp(fleet.x), np.ptp(fleet.y)))
+    if grid is None:
+        center = [float(np.mean(fleet.x)), float(np.mean(fleet.y)), 0.0]
+        span = float(max(np.ptp(fleet.x), np.ptp(fleet.y)))
+    else:
+        size = (grid.width * grid.resolution, grid.height * grid.resolution)
+        center = [*(float(v) for v in grid.from_grid(0.5 * size[0], 0.5 * size[1])), 0.0]
+        span = float(max(size))
     whole_run = rrb.VisibleTimeRanges(rrb.VisibleTimeRange(
         TIMELINE, start=rrb.TimeRangeBoundary.infinite(),
         end=rrb.TimeRangeBoundary.cursor_relative()))
@@ -308,7 +386,8 @@ class _Frames:
 
     FIELDS = ('x', 'y', 'yaw', 'linear', 'angular', 'target_linear', 'target_angular')
 
-    def __init__(self, count):
+    def __init__(self, count, in_map=False):
+        self.in_map = in_map  # the poses kept are the map frame's (world.map_poses())
         self.capacity = min(8192, max(64, _MAX_VALUES_PER_FRAME // count))
         self.stamps = np.zeros(self.capacity, dtype=np.int64)
         for name in self.FIELDS:
@@ -325,6 +404,11 @@ class _Frames:
         self.stamps[i] = stamp_ns
         for name in self.FIELDS:
             getattr(self, name)[i] = getattr(fleet, name)
+        if self.in_map:  # as world.map_poses(), without turning yaw back into (-pi, pi]
+            c, s = np.cos(fleet.map_yaw), np.sin(fleet.map_yaw)
+            self.x[i] = fleet.map_x + c * fleet.x - s * fleet.y
+            self.y[i] = fleet.map_y + s * fleet.x + c * fleet.y
+            self.yaw[i] = fleet.yaw + fleet.map_yaw
         self.steps = i + 1
 
     def take(self):
@@ -364,6 +448,47 @@ def _strips(stamps, xs, ys, linear):
         xs[robot, :after + 1] = xs[robot, after + 1]
         ys[robot, :after + 1] = ys[robot, after + 1]
     return np.stack([xs, ys, np.zeros_like(xs)], axis=2)
+
+
+def scan_points(ranges, angles, x, y, yaw):
+    """
+    Return the hit points of scans, (points (n, 2), owners (n,)): each robot's in one frame.
+
+    ranges is (robots, beams), angles the beams' angles to the heading (beams,), and x, y,
+    yaw (robots,) the scanners' poses in the frame the points are wanted in; beams without a
+    finite range (no return, too near) give no point.  owners is each point's robot.
+    """
+    ranges = np.asarray(ranges, dtype=float)
+    owners, beams = np.nonzero(np.isfinite(ranges))
+    hit = ranges[owners, beams]
+    heading = np.asarray(yaw, dtype=float)[owners] + np.asarray(angles, dtype=float)[beams]
+    points = np.empty((len(hit), 2))
+    points[:, 0] = np.asarray(x, dtype=float)[owners] + hit * np.cos(heading)
+    points[:, 1] = np.asarray(y, dtype=float)[owners] + hit * np.sin(heading)
+    return points, owners
+
+
+def solid_boxes(grid):
+    """
+    Return a map's obstacle cells as boxes, (centers (n, 3), half_sizes (n, 3)), map frame.
+
+    One box per run of obstacle cells along a row, so a wall is a box or a few, not a box per
+    cell; the boxes are turned by the map origin's yaw (each box's rotation).
+    """
+    solid = np.asarray(grid.solid, dtype=np.int8)
+    edges = np.diff(np.pad(solid, ((0, 0), (1, 1))), axis=1)
+    rows, starts = np.nonzero(edges == 1)
+    _, ends = np.nonzero(edges == -1)  # row by row, in the same order as the starts
+    res = grid.resolution
+    gx, gy = 0.5 * (starts + ends) * res, (rows + 0.5) * res
+    mx, my = grid.from_grid(gx, gy)
+    centers = np.zeros((len(rows), 3))
+    centers[:, 0], centers[:, 1] = mx, my
+    half_sizes = np.empty((len(rows), 3))
+    half_sizes[:, 0] = 0.5 * (ends - starts) * res
+    half_sizes[:, 1] = 0.5 * res
+    half_sizes[:, 2] = MAP_HALF_HEIGHT
+    return centers, half_sizes
 
 
 def rerun_program():
