@@ -37,7 +37,7 @@ ROW_KEYS = (
     'rotate_timed', 'rotate_odom', 'out_and_back_closure', 'circle_closure',
     'integration_error', 'rtf_in_process', 'rtf_processes', 'latency', 'cpu_idle',
     'cpu_commands', 'scaling_one_process', 'scaling_processes', 'fleet_cpu', 'fleet_real_time',
-    'fleet_rtf', 'fleet_per_robot', 'fleet_motions', 'fleet_idle_large', 'suite',
+    'fleet_rtf', 'fleet_per_robot', 'fleet_motions', 'fleet_idle_large', 'suite', 'scan_cast',
 )
 
 # The original's speed: 60 deg/s converted with 3.14/180 [rad/s].
@@ -154,6 +154,7 @@ def test_quick_run_writes_every_row(tmp_path):
     assert rows['rtf_in_process']['events_identical'] is True
     assert rows['out_and_back_closure']['rbx1_mm'] == pytest.approx(1.593, abs=1e-3)
     assert rows['integration_error']['arc_max_m'] < 1e-8
+    assert rows['scan_cast']['fleet_cast_s'] < rows['scan_cast']['fleet_loop_s']
     assert tuple(rows['rtf_processes']['rtf']) == sizes.process_motions
     assert rows['latency']['samples'] + rows['latency']['lost'] == sizes.latency_samples
     assert rows['cpu_idle']['idle_percent'] >= 0.0

@@ -390,8 +390,10 @@ def test_the_readme_parameter_table_is_the_simulators_spec_table():
 
 
 def test_the_readme_lists_the_simulators_topics_and_services(ros_context):
-    sim = UnicycleSim(context=ros_context,
-                      parameter_overrides=[Parameter('publish_clock', value=True)])
+    # With a map, so the world's topics are there too.
+    sim = UnicycleSim(context=ros_context, parameter_overrides=[
+        Parameter('publish_clock', value=True),
+        Parameter('map_file', value=str(ROOT / 'maps' / 'room.yaml'))])
     try:
         kinds = [(pub.topic_name, pub.msg_type) for pub in sim.publishers]
         kinds += [(sub.topic_name, sub.msg_type) for sub in sim.subscriptions]

@@ -28,6 +28,8 @@ from nav_msgs.msg import OccupancyGrid
 import numpy as np
 import pytest
 from rclpy.node import Node
+from rclpy.parameter import Parameter
+from sensor_msgs.msg import LaserScan
 from sim_diffdrive.angles import quaternion_from_yaw
 from sim_diffdrive.harness import SimGraph
 from sim_diffdrive.harness import twist_of
@@ -186,7 +188,6 @@ def scans_with(seed, steps=0.5):
                   initial_y=0.3)
         seen = []
         node = graph.add(Node('noise', context=graph.context))
-        from sensor_msgs.msg import LaserScan
         node.create_subscription(LaserScan, 'scan', lambda msg: seen.append(
             np.array(msg.ranges, dtype=np.float32).tobytes()), 10)
         graph.step_for(steps)
@@ -218,39 +219,41 @@ def test_a_late_subscriber_gets_the_map(graph):
     assert (data[0] == 100).all() and (data[30, 1:49] == 0).all() and data[30, 50] == 100
 
 
-def bad_world(tmp_path, **params):
+def bad_world(ros_context, **params):
     with pytest.raises(ParameterError) as refused:
-        from rclpy.context import Context
-        import rclpy
-        context = Context()
-        rclpy.init(context=context, domain_id=0)
-        try:
-            from rclpy.parameter import Parameter
-            UnicycleSim(context=context, parameter_overrides=[
-                Parameter(name, value=value) for name, value in params.items()])
-        finally:
-            rclpy.try_shutdown(context=context)
+        UnicycleSim(context=ros_context, parameter_overrides=[
+            Parameter(name, value=value) for name, value in params.items()])
     return str(refused.value)
 
 
-def test_bad_worlds_are_refused_by_name(tmp_path):
-    assert 'map_file' in bad_world(tmp_path, map_file=str(tmp_path / 'missing.yaml'))
+def test_bad_worlds_are_refused_by_name(ros_context, tmp_path):
+    assert 'map_file' in bad_world(ros_context, map_file=str(tmp_path / 'missing.yaml'))
     (tmp_path / 'no_resolution.yaml').write_text('image: room.pgm\norigin: [0, 0, 0]\n')
-    assert 'resolution' in bad_world(tmp_path, map_file=str(tmp_path / 'no_resolution.yaml'))
+    assert 'resolution' in bad_world(ros_context, map_file=str(tmp_path / 'no_resolution.yaml'))
     (tmp_path / 'no_image.yaml').write_text('resolution: 0.05\norigin: [0, 0, 0]\n')
-    assert 'image' in bad_world(tmp_path, map_file=str(tmp_path / 'no_image.yaml'))
+    assert 'image' in bad_world(ros_context, map_file=str(tmp_path / 'no_image.yaml'))
     (tmp_path / 'text.pgm').write_text('not an image')
     (tmp_path / 'text.yaml').write_text('image: text.pgm\nresolution: 0.05\n'
                                         'origin: [0, 0, 0]\n')
-    assert 'text.pgm' in bad_world(tmp_path, map_file=str(tmp_path / 'text.yaml'))
+    assert 'text.pgm' in bad_world(ros_context, map_file=str(tmp_path / 'text.yaml'))
     (tmp_path / 'thresholds.yaml').write_text(
         f'image: {ROOM[:-4]}pgm\nresolution: 0.05\norigin: [0, 0, 0]\n'
         'occupied_thresh: 0.2\nfree_thresh: 0.6\n')
-    assert 'thresh' in bad_world(tmp_path, map_file=str(tmp_path / 'thresholds.yaml'))
-    in_wall = bad_world(tmp_path, map_file=ROOM, initial_x=2.05, initial_y=1.0)
+    assert 'thresh' in bad_world(ros_context, map_file=str(tmp_path / 'thresholds.yaml'))
+    in_wall = bad_world(ros_context, map_file=ROOM, initial_x=2.05, initial_y=1.0)
     assert 'wall' in in_wall and '(2.050, 1.000)' in in_wall
-    on_robot = bad_world(tmp_path, map_file=ROOM, robots=['a', 'b'],
+    on_robot = bad_world(ros_context, map_file=ROOM, robots=['a', 'b'],
                          initial_poses=[0.0, 0.0, 0.0, 0.1, 0.0, 0.0])
     assert 'on a' in on_robot or 'on b' in on_robot
-    assert 'scan_range_min' in bad_world(tmp_path, map_file=ROOM, scan_range_min=3.0,
+    assert 'scan_range_min' in bad_world(ros_context, map_file=ROOM, scan_range_min=3.0,
                                          scan_range_max=2.0)
+
+
+def test_a_missing_map_file_ends_unicycle_sim_with_exit_2_naming_it(procs, tmp_path):
+    missing = str(tmp_path / 'nowhere.yaml')
+    sim = procs('unicycle_sim', 'unicycle_sim', '--ros-args', '-p', f'map_file:={missing}')
+    code = sim.wait(20.0)
+    output = sim.output()
+    assert code == 2, output
+    assert "'map_file'" in output and 'nowhere.yaml' in output
+    assert 'Traceback' not in output

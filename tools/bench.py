@@ -35,6 +35,7 @@ from benchmark import fleet  # noqa: F401  (each module registers its rows, in t
 from benchmark import one_process  # noqa: F401
 from benchmark import processes  # noqa: F401
 from benchmark import suite  # noqa: F401
+from benchmark import world  # noqa: F401
 from benchmark.core import ROWS
 from benchmark.core import Run
 import rclpy

@@ -52,6 +52,7 @@ SIZES = {  # each: (make bench, --quick)
     'fleet_messages': (10000, 500),  # Odometry publishes for rclpy's cost per message
     'fleet_motion_robots': (16, 1),  # robots_processes[-1]: row 17 reuses row 12's pairs
     'fleet_idle_robots': (1024, 4),  # row 18: the largest idle fleet (quick: row 13's)
+    'scan_repeats': (5, 1),  # row 20: casts timed, best of
 }
 ROWS = {}  # key -> (group, function(run) -> Row), in table order
 
