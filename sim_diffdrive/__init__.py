@@ -21,5 +21,6 @@ their state), ``world/`` (the map, contacts and the laser scan, no ROS), ``locks
 Foxglove, the browser), ``testing/`` (SimGraph, processes, the ``sim_graph`` fixture).  Beside
 them, the plumbing the motions share: parameters, runtime (one ``main()``), angles, the exact
 kinematics, the DDS profile.  Public entry points: ``sim_diffdrive.harness`` (SimGraph and
-what tests need) and ``sim_diffdrive.participant.take_part``.  Nothing here depends on the motions package.
+what tests need) and ``sim_diffdrive.participant.take_part``.  Nothing here depends on the
+motions package.
 """

@@ -34,9 +34,10 @@ from sim_diffdrive.parameters import Spec
 
 TAP_PARAMETERS = (
     Spec('record_file', '',
-         'Record cmd_vel, odom, /tf, /clock and path to this MCAP file (ROS 2 encoding: cdr '
-         'messages, ros2msg schemas; ros2 bag and Foxglove open it), closed with its index on '
-         'Ctrl-C and SIGTERM; empty = off. Needs the mcap package.'),
+         'Record cmd_vel, odom, /tf, /clock and path (with map_file also map, scan and '
+         '/tf_static) to this MCAP file (ROS 2 encoding: cdr messages, ros2msg schemas; ros2 '
+         'bag and Foxglove open it), closed with its index on Ctrl-C and SIGTERM; empty = off. '
+         'Needs the mcap package.'),
     Spec('foxglove_port', 0,
          'Serve the run live to Foxglove (its WebSocket protocol) on this port, e.g. '
          "8765, Foxglove's usual one; 0 = off. Needs foxglove-sdk.",

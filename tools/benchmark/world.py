@@ -38,6 +38,6 @@ def scan_cast(run):
         f'{loop_share:.0f} % of a core',
         'sim_diffdrive.world.scan: every beam of every robot at once (numpy), exact to the cell '
         "boundaries, with the other robots' discs and noise. Reference: nav2_loopback_sim's "
-        f"method, a Python loop per ray over the grid (off by up to {figures['loop_error_max_m']:.3f}"
-        ' m). Leaves the rest of a core for the odometry.',
+        'method, a Python loop per ray over the grid (off by up to '
+        f"{figures['loop_error_max_m']:.3f} m). Leaves the rest of a core for the odometry.",
         f'<= {TARGET_SCAN_CORE_PERCENT:g} %', share <= TARGET_SCAN_CORE_PERCENT, figures)
