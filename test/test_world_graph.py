@@ -22,8 +22,10 @@ value is worked out here from those faces, independently of the simulator's geom
 
 import math
 from pathlib import Path
+import signal
 
 from geometry_msgs.msg import PoseWithCovarianceStamped
+from geometry_msgs.msg import Twist
 from nav_msgs.msg import OccupancyGrid
 import numpy as np
 import pytest
@@ -33,6 +35,7 @@ from sensor_msgs.msg import LaserScan
 from sim_diffdrive.angles import quaternion_from_yaw
 from sim_diffdrive.harness import SimGraph
 from sim_diffdrive.harness import twist_of
+from sim_diffdrive.lockstep.participant import take_part
 from sim_diffdrive.parameters import ParameterError
 from sim_diffdrive.sim.node import UnicycleSim
 from sim_diffdrive.sim.surroundings import LATCHED_QOS
@@ -257,3 +260,43 @@ def test_a_missing_map_file_ends_unicycle_sim_with_exit_2_naming_it(procs, tmp_p
     assert code == 2, output
     assert "'map_file'" in output and 'nowhere.yaml' in output
     assert 'Traceback' not in output
+
+
+class StopBeforeTheWall(Node):
+    """docs/world.md's controller, held until the test lets it go (enabled)."""
+
+    def __init__(self, **kwargs):
+        super().__init__('stop_before_the_wall', **kwargs)
+        self.enabled = False
+        self.cmd_pub = self.create_publisher(Twist, 'cmd_vel', 10)
+        self.create_subscription(LaserScan, 'scan', self.on_scan, 10)
+
+    def on_scan(self, scan):
+        ahead = scan.ranges[round(-scan.angle_min / scan.angle_increment)]
+        cmd = Twist()
+        if self.enabled and ahead > 0.5:
+            cmd.linear.x = 0.3
+        self.cmd_pub.publish(cmd)
+
+
+def test_a_controller_in_another_process_reads_the_scan_in_lockstep_exactly(graph, procs):
+    sim = procs('unicycle_sim', 'unicycle_sim', '--ros-args', '-p', f'map_file:={ROOM}',
+                '-p', 'publish_clock:=true', '-p', 'real_time_factor:=20.0',
+                '-p', 'initial_x:=0.5', '-p', 'initial_y:=0.3')
+    controller = graph.add(StopBeforeTheWall(context=graph.context,
+                                             parameter_overrides=graph.sim_time_params()))
+    lockstep = take_part(controller)
+    assert graph.spin_until(
+        lambda: lockstep.joined and lockstep.counted_on(controller.cmd_pub.topic_name),
+        timeout=30.0), sim.output()
+    controller.enabled = True  # from a scan on: 0.03 m a scan, each command on its step
+    assert graph.spin_until(lambda: graph.odom() is not None and graph.odom().header.stamp.sec
+                            > 0 and twist_of(graph.odom()) == (0.3, 0.0), timeout=30.0)
+    assert graph.spin_until(lambda: twist_of(graph.odom()) == (0.0, 0.0), timeout=60.0), (
+        sim.output())
+    x, y, yaw = graph.pose()
+    assert x == pytest.approx(0.5 + 34 * 0.03, abs=1e-9) and (y, yaw) == (0.3, 0.0)
+    lockstep.leave()
+    sim.send(signal.SIGINT)
+    assert sim.wait(10.0) == 0
+    assert 'Traceback' not in sim.output()
