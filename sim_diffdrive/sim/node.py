@@ -331,7 +331,8 @@ class UnicycleSim(Node):
         if taps:
             for robot, data in zip(robots, odometry):
                 taps.write(robot.odom_pub.topic_name, data, stamp_ns)
-        if self._tf is not None:
+        # /tf only while someone listens: a step costs its messages, and this is one of three.
+        if self._tf is not None and (taps or self._tf.publisher.get_subscription_count()):
             data = self._tf.publish(sec, nanosec, x, y, qz, qw, each)
             if taps:
                 taps.write(self._tf.publisher.topic_name, data, stamp_ns)

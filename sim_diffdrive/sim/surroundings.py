@@ -163,13 +163,14 @@ class Surroundings:
 
     def publish(self, stamp_ns, world, taps):
         """Publish map -> odom with this step's odometry, and the scans when they are due."""
-        sec, nanosec = divmod(stamp_ns, _NS)
-        half = 0.5 * world.map_yaw
-        data = self._map_layout.serialize(sec, nanosec, world.map_x, world.map_y,
-                                          np.sin(half), np.cos(half))
-        self._tf_pub.publish(data)
-        if taps:
-            taps.write(self._tf_pub.topic_name, data, stamp_ns)
+        if taps or self._tf_pub.get_subscription_count():  # only while someone listens
+            sec, nanosec = divmod(stamp_ns, _NS)
+            half = 0.5 * world.map_yaw
+            data = self._map_layout.serialize(sec, nanosec, world.map_x, world.map_y,
+                                              np.sin(half), np.cos(half))
+            self._tf_pub.publish(data)
+            if taps:
+                taps.write(self._tf_pub.topic_name, data, stamp_ns)
         due = self._scan_every and self._steps % self._scan_every == 0
         self._steps += 1
         if not due:
