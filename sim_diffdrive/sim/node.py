@@ -215,8 +215,7 @@ class UnicycleSim(Node):
 
     def step_to(self, now_ns):
         """Bring every robot up to now_ns and publish what the world says (a clock's step)."""
-        self.world.step_to(now_ns)
-        self.publish_odom()
+        self.publish_odom(self.world.step_to(now_ns))
 
     def advance_all(self, now_ns):
         """Integrate every robot up to now_ns (before something changes: a parameter, a pose)."""
@@ -315,10 +314,10 @@ class UnicycleSim(Node):
         return OdometryLayout(self._frames(), covariance(p.pose_covariance_diagonal),
                               covariance(p.twist_covariance_diagonal))
 
-    def publish_odom(self):
-        """Publish every robot's odometry (and one /tf message with all of them)."""
+    def publish_odom(self, odometry=None):
+        """Publish every robot's odometry (the world's, by default), /tf, the world's topics."""
         world = self.world
-        stamp_ns, x, y, qz, qw, linear, angular = world.odometry()
+        stamp_ns, x, y, qz, qw, linear, angular = odometry or world.odometry()
         sec, nanosec = divmod(stamp_ns, _NS)
         each = world.one_by_one  # floats, written robot by robot; else arrays
         layout = self._odometry

@@ -255,7 +255,7 @@ class World:
             drives, self._drives = self._drives, None
             self._collide(begin_ns, drives)
         elif self.one_by_one:
-            for i in range(len(self)):
+            for i in range(len(self.names)):
                 self._advance(i, now_ns)
         else:
             self._advance_in_numpy(now_ns)
