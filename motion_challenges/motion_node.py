@@ -23,18 +23,25 @@ publishing a zero Twist and one closing line that compares the goal with what od
 achieved.  ``shutdown_hook`` (called by runtime.run on every exit
 path) publishes the zero Twist again, so Ctrl-C or SIGTERM mid-motion stops the robot.
 
-The laws themselves are plain code: the closed loops, the lag compensation (CommandLog) and the
-odometry checks in controllers.py, the open-loop plans in plans.py (see timed_motion.py).
+MotionNode runs the states (MotionState) and the settling; its parts, each a plain object or
+function it owns or calls: RobotWatch (robot_watch.py) waits for the robot and watches it,
+closing.py writes the closing line, run_plot.py the plot_file.  The laws themselves are plain
+code: the closed loops, the lag compensation (CommandLog) and the odometry checks in
+controllers.py, the open-loop plans in plans.py (see timed_motion.py).
 """
 
-import enum
 import time
 
 from geometry_msgs.msg import Twist
 from geometry_msgs.msg import TwistStamped
+from motion_challenges.closing import closing_for
+from motion_challenges.closing import closing_line
+from motion_challenges.closing import DONE
 from motion_challenges.controllers import CommandLog
 from motion_challenges.controllers import odometry_fault
-from motion_challenges.odometry import OdomPose
+from motion_challenges.motion_state import MotionState
+from motion_challenges.robot_watch import RobotWatch
+from motion_challenges.run_plot import write_plot
 from motion_challenges.specs import COMMON_PARAMETERS
 from nav_msgs.msg import Odometry
 from rclpy.clock import Clock
@@ -44,45 +51,18 @@ from rclpy.duration import Duration
 from rclpy.node import Node
 from sim_diffdrive.angles import YawAccumulator
 from sim_diffdrive.lockstep.participant import take_part
-from sim_diffdrive.node_names import node_names
 from sim_diffdrive.parameters import declare
 from sim_diffdrive.runtime import destroyed_if_refused
 from sim_diffdrive.runtime import EXIT_FAILED
 from sim_diffdrive.runtime import EXIT_OK
 from sim_diffdrive.throttle import Throttle
 
+__all__ = ['DONE', 'MotionNode', 'MotionState', 'closing_line']
+
 _NS = 1_000_000_000
 # How long to wait for the odometry that shows where the robot came to rest: this many control
 # periods, or odom_timeout if longer.
 _SETTLE_TICKS = 20
-# Odometry stamped this far from a wall-time node's clock, with /clock published, is on
-# simulated time [s]: further than any clock skew between two hosts.
-_CLOCKS_APART_S = 60.0
-
-
-# How a motion's closing line starts when it reached its goal (closing_line finds it).
-DONE = 'Done in '
-
-
-def closing_line(output):
-    """Return a motion's closing line ('Done in ...') from its output, or its last error line."""
-    lines = output.splitlines()
-    for line in reversed(lines):
-        if DONE in line:
-            return line
-    for line in reversed(lines):
-        if '[ERROR]' in line or 'Error' in line:
-            return line
-    return lines[-1] if lines else ''
-
-
-class MotionState(str, enum.Enum):
-    """Where a motion is (a str too, equal to its value, for code that compares with one)."""
-
-    WAITING = 'waiting'  # for the goal, then for the robot (see MotionNode._missing)
-    RUNNING = 'running'  # control() is called every tick
-    SETTLING = 'settling'  # stopped; waiting for odometry that shows where the robot came to rest
-    FINISHED = 'finished'  # done or given up: see exit_code
 
 
 class MotionNode(Node):
@@ -115,9 +95,7 @@ class MotionNode(Node):
         self._odom_topic = self.create_subscription(
             Odometry, 'odom', self._on_odom, 50, raw=True).topic_name
         self.odom = None
-        self._odom_wall = None
         self._progress_log = Throttle(1.0)  # a progress line a second
-        self._waiting_log = Throttle(2.0)
         self.run_odoms = []  # the OdomPose of each odometry while running or settling
         self.sent_commands = []  # for plot_file: (time_ns, linear, angular) of each command
         self.start_odom = None
@@ -128,28 +106,25 @@ class MotionNode(Node):
         self.exit_code = None
         self.start_ns = None
         self._stop_ns = None
-        self._wall_start = None
         self._wall_begun = None
-        self._ready = False
         self._primed = False
         self._tick_timer = None
+        # Waiting for the robot and watching it; on sim time its odometry waits in the watch's
+        # queue for the first tick after it.
+        self.watch = RobotWatch(self, self._odom_topic, self._use_odom, self._distrust)
         # Waiting is timed on the wall clock: on sim time, node timers do not fire until the
         # simulator publishes /clock, and a missing simulator is exactly what to report.
         self._watchdog = self.create_timer(
-            0.5, self._on_watchdog, clock=Clock(clock_type=ClockType.STEADY_TIME))
-        # On sim time, the clock as the watchdog last saw it, and when it last saw it move.
-        self._clock_seen_ns = None
-        self._clock_moved_wall = None
+            0.5, self.watch.on_watchdog, clock=Clock(clock_type=ClockType.STEADY_TIME))
         # A restarted simulator's clock starts again from zero, and its first odometry may
         # reach us only once its time has passed the last we had: watch the clock itself.
         self._time_jump = self.get_clock().create_jump_callback(
             JumpThreshold(min_forward=None, min_backward=Duration(nanoseconds=-1),
-                          on_clock_change=False), post_callback=self._on_time_jump)
+                          on_clock_change=False), post_callback=self.watch.on_time_jump)
         # On sim time: take part in the simulator's lockstep, and act at each tick on the
         # odometry measured before it, so that the decision never depends on whether this
         # step's odometry or clock crossed the graph first (runs are bit-identical).
         self.sim_time = self.get_parameter('use_sim_time').value
-        self._early_odoms = []
         self.lockstep = None if not self.sim_time else (
             participant.add(self) if participant is not None and participant.can_add(self)
             else take_part(self))
@@ -168,9 +143,7 @@ class MotionNode(Node):
 
     def ready(self):
         """Start waiting for the robot and then move (called once the goal is known)."""
-        # start_timeout counts from here: a user answering questions is not a missing robot.
-        self._wall_start = time.monotonic()
-        self._ready = True
+        self.watch.start()
         self._tick_timer = self.create_timer(self.period, self._on_tick)
 
     def finish(self, exit_code, message=None):
@@ -179,7 +152,7 @@ class MotionNode(Node):
             log = self.get_logger().info if exit_code == EXIT_OK else self.get_logger().error
             log(message)
         self.state = MotionState.FINISHED
-        self._early_odoms.clear()
+        self.watch.stop()
         self.exit_code = exit_code
         self.done = True
         for timer in (self._tick_timer, self._watchdog):
@@ -242,21 +215,10 @@ class MotionNode(Node):
     # -- callbacks ---------------------------------------------------------------------------
 
     def _on_odom(self, msg):
-        odom = OdomPose(msg)
-        self._odom_wall = time.monotonic()
-        if self.sim_time and self.state != MotionState.FINISHED:
-            # In stamp order (the order it arrives in), through the queue: odometry from before
-            # the clock used at once while older odometry still waited for a tick was taken for
-            # time going back, after a clock that jumped ahead (a simulator that went on).
-            self._early_odoms.append(odom)
-            self._take_early_odoms(self.now_ns())
-            return
-        self._use_odom(odom)
+        self.watch.on_odom(msg)
 
     def _take_early_odoms(self, now_ns):
-        early = self._early_odoms
-        while early and early[0].stamp_ns < now_ns and self.state != MotionState.FINISHED:
-            self._use_odom(early.pop(0))
+        self.watch.take_early_odoms(now_ns)
 
     def _use_odom(self, odom):
         if self.needs_odom and self.state == MotionState.RUNNING and self.odom is not None:
@@ -272,133 +234,22 @@ class MotionNode(Node):
         if self.state in (MotionState.RUNNING, MotionState.SETTLING):
             self.run_odoms.append(odom)
 
-    def _on_time_jump(self, jump):
-        self._early_odoms.clear()
-        if self.needs_odom and self.state == MotionState.RUNNING:
-            self._distrust(f'Simulated time went back {-jump.delta.nanoseconds / _NS:.3f} s')
-
     def _distrust(self, why):
         self.finish(EXIT_FAILED, f'{why}; stopped the robot rather than drive on odometry that '
                                  'cannot be trusted (simulator restarted?)')
-
-    def _missing(self):
-        """Return what the motion still waits for, or '' when it can start."""
-        cmd_topic = self.cmd_pub.topic_name
-        if self.params.wait_for_odom:
-            robot = self._robot_node()
-            if robot is None:
-                return (f'the robot (a node that publishes {self._odom_topic} and subscribes '
-                        f'{cmd_topic})')
-            if self.cmd_pub.get_subscription_count() < self.count_subscribers(cmd_topic):
-                return f'{cmd_topic} to be matched by {robot}'
-        elif self.cmd_pub.get_subscription_count() == 0:
-            return f'a subscriber on {cmd_topic}'
-        lockstep = self.lockstep
-        if lockstep is not None and lockstep.owner_present:
-            if not lockstep.joined:
-                return 'the simulator to take this node into its lockstep'
-            if not lockstep.counted_on(cmd_topic):
-                return f'the node that drives on {cmd_topic} to join the lockstep'
-        if self.odom is None and (self.needs_odom or self.params.wait_for_odom
-                                  or self.count_publishers(self._odom_topic)):
-            # Without wait_for_odom open loop needs none, but where there is some, the closing
-            # line uses it.
-            return 'odometry on ' + self._odom_topic
-        return ''
-
-    def _clock_clash(self, now_ns):
-        """Return why this node's wall clock cannot be the robot's, or '' (sim time: '')."""
-        if self.sim_time or self.odom is None:
-            return ''
-        apart_s = abs(self.odom.stamp_ns - now_ns) / _NS
-        clock_topic = self.resolve_topic_name('/clock')
-        if apart_s < _CLOCKS_APART_S or not self.count_publishers(clock_topic):
-            return ''
-        # Judged by stamps and the clock alike, the run would go wrong in ways that point
-        # elsewhere (no odometry after the stop, a jump): say what is wrong before moving.
-        return (f'Odometry on {self._odom_topic} is stamped {self.odom.stamp_ns / _NS:.3f} s, '
-                f"{apart_s:.0f} s from this node's clock (wall time), and {clock_topic} is "
-                'published: the robot runs on simulated time. Start this motion with -p '
-                'use_sim_time:=true. Nothing moved.')
-
-    def _robot_node(self):
-        """Return the name of a node that publishes our odometry and subscribes our cmd_vel."""
-        publishers = self.get_publishers_info_by_topic(self._odom_topic)
-        subscribers = self.get_subscriptions_info_by_topic(self.cmd_pub.topic_name)
-        robots = set(node_names(publishers)) & set(node_names(subscribers))
-        return min(robots) if robots else None
-
-    def _on_watchdog(self):
-        if self.needs_odom and self.state == MotionState.RUNNING:
-            self._watch_odometry()
-        elif self._ready and self.state == MotionState.WAITING:
-            self._watch_start()
-        if self.sim_time and self.state in (MotionState.RUNNING, MotionState.SETTLING):
-            self._watch_clock()
-
-    def _watch_clock(self):
-        # On sim time the ticks come with the clock: a simulator that died mid-motion stops
-        # them, and an open-loop motion would wait for its next tick forever.
-        now_ns, wall = self.now_ns(), time.monotonic()
-        if now_ns != self._clock_seen_ns or self._clock_moved_wall is None:
-            self._clock_seen_ns, self._clock_moved_wall = now_ns, wall
-            return
-        last_sign = self._clock_moved_wall
-        if self.lockstep is not None and self.lockstep.roster_wall is not None:
-            last_sign = max(last_sign, self.lockstep.roster_wall)  # as in _watch_odometry
-        silent = wall - last_sign
-        if silent > self.params.odom_timeout:
-            self.finish(EXIT_FAILED, f'Simulated time stood still at {now_ns / _NS:.3f} s for '
-                                     f'{silent:.1f} s mid-motion with no word from the '
-                                     'simulator; stopped the robot (is the simulator still '
-                                     'running?)')
-
-    def _watch_odometry(self):
-        publishers = self.count_publishers(self._odom_topic)
-        if publishers != 1:
-            # A simulator restarted after a crash shows up beside its predecessor (gone for
-            # good, but still in discovery for a while): its odometry can look continuous when
-            # its clock or pose happens to have caught up with the last.
-            self._distrust(f'{publishers} publishers on {self._odom_topic} mid-motion')
-            return
-        last_sign = self._odom_wall
-        if self.lockstep is not None and self.lockstep.roster_wall is not None:
-            # In lockstep the simulator repeats its roster while it holds the clock for a slow
-            # or joining node: odometry is late then because time stands still.
-            last_sign = max(last_sign, self.lockstep.roster_wall)
-        silent = time.monotonic() - last_sign
-        if silent > self.params.odom_timeout:
-            self.finish(EXIT_FAILED, f'No odometry for {silent:.1f} s mid-motion; stopped '
-                                     'the robot (is the simulator still running?)')
-
-    def _watch_start(self):
-        missing = self._missing()
-        if not missing and self.get_parameter('use_sim_time').value and self.now_ns() == 0:
-            missing = 'simulated time on /clock (use_sim_time is true)'
-        if not missing:
-            return
-        waited = time.monotonic() - self._wall_start
-        if waited > self.params.start_timeout:
-            hint = ('it runs but has not heard this node yet (a slow or lossy link: raise '
-                    'start_timeout; a process killed while it ran on this machine can leave '
-                    'it deaf to new ones: restart it).' if 'lockstep' in missing else
-                    'is the robot (or unicycle_sim) running?')
-            self.finish(EXIT_FAILED, f'Gave up after {waited:.1f} s waiting for {missing}; '
-                                     f'{hint} Nothing moved.')
-        elif self._waiting_log.allows():
-            self.get_logger().info(f'Waiting for {missing} ...')
 
     def _on_tick(self):
         now_ns = self.now_ns()
         if now_ns == 0:
             return
-        self._take_early_odoms(now_ns)
-        if self.state in (MotionState.RUNNING, MotionState.SETTLING) and self._dropped_mid_run():
+        self.watch.take_early_odoms(now_ns)
+        if (self.state in (MotionState.RUNNING, MotionState.SETTLING)
+                and self.watch.dropped_mid_run()):
             return
         if self.state == MotionState.WAITING:
-            if self._missing():
+            if self.watch.missing():
                 return
-            clash = self._clock_clash(now_ns)
+            clash = self.watch.clock_clash(now_ns)
             if clash:
                 self.finish(EXIT_FAILED, clash)
                 return
@@ -425,18 +276,6 @@ class MotionNode(Node):
         if self.state == MotionState.SETTLING:
             self._settle(now_ns)
 
-    def _dropped_mid_run(self):
-        """Fail, stopping the robot, once the simulator has gone on without this node."""
-        dropped_ns = self.lockstep.dropped_ns if self.lockstep is not None else None
-        if dropped_ns is None or dropped_ns < self.start_ns:
-            return False  # never, or while waiting to start: nothing was commanded yet
-        into_s = (dropped_ns - self.start_ns) / _NS
-        self.finish(EXIT_FAILED, f'The simulator went on without this node at '
-                                 f'{dropped_ns / _NS:.3f} s, {into_s:.3f} s into the motion, '
-                                 'stepping without waiting for its commands; '
-                                 'stopped the robot, as the run can no longer end where it should')
-        return True
-
     def _settle(self, now_ns):
         # Report the pose from odometry measured after the stop took effect, if there is any.
         fresh = self.odom is not None and self.odom.stamp_ns > self._stop_ns
@@ -449,37 +288,10 @@ class MotionNode(Node):
             wall_s = time.monotonic() - self._wall_begun
             end_odom = self.odom if fresh else None
             achieved = self.summary(end_odom)
-            if end_odom is not None:
-                self.finish(EXIT_OK, f'{DONE}{sim_s:.3f} s ({wall_s:.3f} s wall): {achieved}')
-            elif not self.params.wait_for_odom:
-                self.finish(EXIT_OK, f'Sent the whole plan in {sim_s:.3f} s ({wall_s:.3f} s '
-                                     f'wall) to a robot without odometry: {achieved}')
-            else:
-                self.finish(EXIT_FAILED, f'Stopped after {sim_s:.3f} s, but no odometry came '
-                                         'after the stop: where the robot ended is unknown '
-                                         '(is the simulator still running?)')
+            self.finish(*closing_for(sim_s, wall_s, achieved, end_odom is not None,
+                                     self.params.wait_for_odom))
             if self.params.plot_file:
-                self._plot(end_odom, achieved)
-
-    def _plot(self, end_odom, achieved):
-        from motion_challenges.plotting import plot_run
-        from motion_challenges.plotting import time_series
-        start = self.start_odom
-        goal = self.goal_pose(start) if start else None
-        # The odometry the motion started on comes first: the heading starts from its yaw.
-        odometry = ([(start.stamp_ns, start.yaw, *start.twist)] if start else []) + [
-            s for s in self.odometry_samples if not start or s[0] > start.stamp_ns]
-        try:
-            plot_run(self.params.plot_file, self.trajectory,
-                     start=(start.x, start.y, start.yaw) if start else None,
-                     end=(end_odom.x, end_odom.y, end_odom.yaw) if end_odom else None,
-                     goal=goal, title=f'{self.get_name()}: {achieved}',
-                     series=time_series(odometry, self.sent_commands, self.start_ns,
-                                        goal[2] if goal else None))
-        except (ImportError, OSError) as error:
-            self.get_logger().error(f'Could not write plot_file: {error}')
-            return
-        self.get_logger().info(f'Wrote {self.params.plot_file}')
+                write_plot(self, end_odom, achieved)
 
     # -- for subclasses ----------------------------------------------------------------------
 

@@ -56,7 +56,7 @@ class TimedMotion(MotionNode):
 
     def _until_next_tick_s(self):
         """Return how long this tick's command holds [s]: until the next tick fires."""
-        step_ns = self.lockstep.counter.clock_step_ns if self.lockstep is not None else None
+        step_ns = self.lockstep.clock_step_ns if self.lockstep is not None else None
         due_ns = self._tick_timer.time_until_next_call()
         if not step_ns or due_ns is None:
             return self.period

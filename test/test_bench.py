@@ -14,24 +14,21 @@
 
 """The benchmark (tools/benchmark/): its originals against hand-computed answers, a quick run."""
 
-import importlib
 import json
 import math
 import os
 import subprocess
 import sys
 
+from benchmark import core
+from benchmark import one_process
+from benchmark import originals
 import pytest
 from sim_diffdrive.harness import isolated_domain_id
 
-TOOLS = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), 'tools')
-BENCH_PATH = os.path.join(TOOLS, 'bench.py')
+BENCH_PATH = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), 'tools',
+                          'bench.py')
 
-# The benchmark lives in tools/benchmark/, which tools/bench.py imports from its own folder.
-sys.path.insert(0, TOOLS)
-core = importlib.import_module('benchmark.core')
-originals = importlib.import_module('benchmark.originals')
-one_process = importlib.import_module('benchmark.one_process')
 # Every row the table prints, in order: README.md and docs refer to them by number.
 ROW_KEYS = (
     'rotate_timed', 'rotate_odom', 'out_and_back_closure', 'circle_closure',

@@ -294,35 +294,18 @@ def test_unicycle_sim_serves_odometry_at_its_rate(procs, client_for):
     client.wait_for_channels('/odom')
     client.subscribe('/odom')
     stamps = []
-    walls = []
     try:
         while len(stamps) < 120:
             stamps.append(client.next_message(timeout=5.0)[1])
-            walls.append(time.monotonic())
     except TimeoutError:
         pytest.fail(f'{len(stamps)} messages, then none for 5 s:\n{sim.describe()}')
-    # One message per 20 ms of simulated time, none lost: 50 in any simulated second.
+    # One message per 20 ms of simulated time, none lost: 50 in any simulated second.  (How
+    # fast a freewheeling simulator runs on the wall clock is the bench's to say, not a test's.)
     assert sum(1 for t in stamps if stamps[10] <= t < stamps[10] + 1_000_000_000) == 50
-    # At real_time_factor 1 (freewheeling in lockstep: no participant) the wall rate is the
-    # simulated one, within 20 % (it was half of it while steps were dated when they ended).
-    rate = (len(walls) - 21) / (walls[-1] - walls[20])
-    assert 50 / 1.2 <= rate <= 50 * 1.2, pace(stamps, walls, rate)
     client.close()
     output = harness.stop(sim)
     assert 'Traceback' not in output
     assert f'Foxglove: ws://localhost:{port} closed' in output
-
-
-def pace(stamps, walls, rate):
-    """Say how the messages came: what tells a slow simulator from one late message."""
-    gaps = sorted((b - a, i) for i, (a, b) in enumerate(zip(walls[20:], walls[21:]), 21))
-    late = [w - s / 1e9 for s, w in zip(stamps, walls)]  # wall less simulated time [s]
-    return (f'{rate:.2f} messages/s; the longest waits for one: '
-            + ', '.join(f'{gap * 1000:.0f} ms before #{i}' for gap, i in gaps[-3:])
-            + f'; simulated {(stamps[-1] - stamps[20]) / 1e9:.3f} s in {walls[-1] - walls[20]:.3f}'
-            f' s of wall time; received behind the simulated time by {min(late[20:50]):.3f}-'
-            f'{max(late[20:50]):.3f} s (#20-49), {min(late[90:]):.3f}-{max(late[90:]):.3f} s'
-            ' (#90-119)')
 
 
 def wait_for_line(process, text, timeout=20.0):

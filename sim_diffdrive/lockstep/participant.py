@@ -122,6 +122,16 @@ class Participant:
         return counter
 
     @property
+    def clock_step_ns(self):
+        """
+        The simulated time between the node's last two /clock messages [ns], or None.
+
+        The node this participant was made on; None until its clock has moved once.  A
+        simulator steps evenly: it is the step the clock will next advance by.
+        """
+        return self.counter.clock_step_ns
+
+    @property
     def owner_present(self):
         """Whether a simulator that steps in lockstep listens for answers."""
         return self.node.count_subscribers(self._answer_topic) > 0
@@ -311,6 +321,8 @@ class Member:
     roster_wall = property(lambda self: self.participant.roster_wall)
     dropped_ns = property(lambda self: self.participant.dropped_ns)
     owner_present = property(lambda self: self.participant.owner_present)
+    # This node's clock step, read-only (see Participant.clock_step_ns).
+    clock_step_ns = property(lambda self: self.counter.clock_step_ns)
 
     def counted_on(self, topic):
         """Return whether some node that handles topic is counted (see Participant)."""
