@@ -15,11 +15,13 @@
 """
 The clock owner's side of the lockstep: step when every participant has answered the last step.
 
-``unicycle_sim`` with ``publish_clock`` and ``lockstep`` hands its stepping to a LockstepOwner:
-it listens to the participants' answers on ``<clock>/answers`` (see handshake.py and
-participant.py), publishes who is counted on ``<clock>/roster``, steps the simulator when the
-last step is settled and ``real_time_factor`` allows it, and freewheels until the first answer
-(as PX4's lockstep does).
+``unicycle_sim`` with ``publish_clock`` and ``lockstep`` asks a LockstepOwner when it may step:
+the owner listens to the participants' answers on ``<clock>/answers`` (see handshake.py and
+participant.py), publishes who is counted on ``<clock>/roster``, and answers ``may_step``: how
+many steps the clock may take now (it freewheels until the first answer, as PX4's lockstep
+does, and then waits for the last step to settle) and whether to re-send the current /clock.
+It is a policy: it neither steps nor writes the clock (sim/clock.py's LockstepClock does both,
+and calls ``on_news`` of its own when an answer or a command may have settled the step).
 
 No single lost sample may stall or skew a run.  While the clock is held the owner re-sends the
 current ``/clock`` and the roster (rclpy's TimeSource takes ``/clock`` best-effort, so a lost
@@ -71,9 +73,9 @@ UNDISCOVERED_TIMEOUTS = 3
 
 
 class LockstepOwner:
-    """Decide when the simulator ``sim`` may step its ``clock`` (a sim.clock.LockstepClock)."""
+    """Decide when the simulator ``sim`` may step its clock, published on ``clock_topic``."""
 
-    def __init__(self, sim, clock):
+    def __init__(self, sim, clock_topic, on_news):
         """
         Listen for answers; call before the simulator creates its robots' subscriptions.
 
@@ -82,11 +84,13 @@ class LockstepOwner:
         take a lockstep owner for a free clock on a lossy link (Participant.owner_present).
         """
         self.sim = sim
-        self.clock = clock
+        self._clock_topic = clock_topic
+        # Called when something the step waits for has arrived (the clock then looks again).
+        self._news = on_news
         self._owner_id = sim.get_fully_qualified_name() + '#owner'
         self.ledger = StepLedger(self._owner_id)
         self._bad_answers = Throttle(5.0)
-        self._answer_topic = answer_topic(clock.topic)
+        self._answer_topic = answer_topic(clock_topic)
         sim.create_subscription(String, self._answer_topic, self._on_answer, ANSWER_QOS)
         self._waiting = None  # what the current step waits for; None: to be worked out
         self._announced = set()
@@ -96,17 +100,17 @@ class LockstepOwner:
         self._step_s = 0.0  # recent wall time between steps [s; moving average]
         self._warned_wall = 0.0
         self._discovery_said = None  # the step the wait for discovery was logged at
-        self._looked = time.monotonic()  # when try_step last ran [s, wall]
+        self._looked = time.monotonic()  # when may_step last ran [s, wall]
         self._stalled_s = 0.0  # how long the simulator itself did not run during this step
 
     def start(self):
         """Count the simulator's own traffic from here on (once its robots exist); go."""
         sim = self.sim
-        self._roster_pub = sim.create_publisher(String, roster_topic(self.clock.topic),
+        self._roster_pub = sim.create_publisher(String, roster_topic(self._clock_topic),
                                                 ROSTER_QOS)
         # The simulator's own traffic (cmd_vel heard, odom sent) is counted like a
         # participant's; its answer holds the counter's live dicts, so only its step changes.
-        counter = MessageCounter.of(sim, self.clock.topic, fixed=True)
+        counter = MessageCounter.of(sim, self._clock_topic, fixed=True)
         counter.listeners.append(self._on_news)
         self._own_answer = Answer(self._owner_id, sim.get_fully_qualified_name(), sim.now_ns(),
                                   counter.sent, counter.heard, False, counter.sent_stamp,
@@ -125,39 +129,37 @@ class LockstepOwner:
         self._resend_s = min(max(RESEND_S, 2.0 * self._step_s), RESEND_MAX_S)
         self._own_answer.step_ns = step_ns
 
-    def try_step(self):
-        """Step if the last step is settled and real_time_factor allows it."""
+    def may_step(self, now, wall, budget_s, period_s):
+        """
+        Return (steps the clock may take now, whether to re-send the current /clock).
+
+        now: the wall time of this look [s, monotonic]; wall: when the clock last stepped (on
+        its schedule); budget_s: the wall time a step may take at real_time_factor; period_s:
+        how often the clock looks without news.
+        """
         sim = self.sim
-        clock = self.clock
         ledger = self.ledger
-        wall = clock.wall
-        now = time.monotonic()
-        self._own_stall(now)
+        self._own_stall(now, wall, period_s)
         waited = now - wall
         if len(ledger.members) <= 1:
-            self._publish_roster()
+            self._publish_roster(wall=wall)
             # Freewheel until the first answer.
-            steps = min(int(waited / clock.budget_s), _MAX_CATCH_UP)
-            for _ in range(steps):
-                clock.step()
-            if steps:
-                self._keep_schedule(wall, steps)
-            return
+            return min(int(waited / budget_s), _MAX_CATCH_UP), False
         if self._waiting is None:
             # Worked out again only after news; the clock timer in between only paces.
             self._waiting = ledger.waiting_for(sim.now_ns())
         waiting = self._waiting
-        self._publish_roster(waiting)
+        resend = self._publish_roster(waiting, wall)
         if waiting:
             held = waited - self._stalled_s  # while the simulator ran, and could hear
             if held <= sim.params.lockstep_timeout or not self._give_up(waiting, held):
-                return
-        if waited >= clock.budget_s:
+                return 0, resend
+        if waited >= budget_s:
             self._step_s += _STEP_WEIGHT * (waited - self._step_s)
-            clock.step()
-            self._keep_schedule(wall, 1)
+            return 1, resend
+        return 0, resend
 
-    def _own_stall(self, now):
+    def _own_stall(self, now, wall, period_s):
         """
         Excuse everyone the time the simulator itself did not run since it last looked.
 
@@ -165,30 +167,16 @@ class LockstepOwner:
         look: a simulator that was stopped for longer than lockstep_timeout would otherwise
         take its live participants for silent ones and go on without them.
         """
-        stalled = now - self._looked - self.clock.period_s()
+        stalled = now - self._looked - period_s
         self._looked = now
         if stalled > _STALLED_S:
             # Only what fell after the step began counts against its hold.
-            self._stalled_s += min(stalled, max(now - self.clock.wall, 0.0))
+            self._stalled_s += min(stalled, max(now - wall, 0.0))
             self.ledger.excuse(stalled, now)
 
     def rescheduled(self):
         """Look from now on: the clock timer starts its period again (a new real_time_factor)."""
         self._looked = time.monotonic()
-
-    def _keep_schedule(self, wall, steps):
-        """
-        Date the steps just taken on the wall schedule, not at the moment they ended.
-
-        The clock timer fires once per step budget; were the last step dated when it ended, the
-        next tick would find a little less than a budget waited and skip, halving the rate.
-        Far behind (the clock was held, or the machine is slower than real_time_factor), the
-        schedule starts again from now rather than catching up in a burst.
-        """
-        budget = self.clock.budget_s
-        scheduled = wall + steps * budget
-        now = time.monotonic()
-        self.clock.wall = scheduled if now - scheduled < budget else now
 
     def _on_answer(self, msg):
         try:
@@ -211,22 +199,26 @@ class LockstepOwner:
         """Something the step may wait for has arrived (an answer, a command): look again."""
         self._waiting = None
         if len(self.ledger.members) > 1:
-            self.try_step()
+            self._news()
         # Without participants the clock timer alone paces the steps: stepping on every
         # command too ran catch-up bursts from inside the command callbacks, and a simulator
         # stepping as fast as it could then lost commands (its cmd_vel queues overflowed).
 
-    def _publish_roster(self, waiting=()):
-        """Tell the participants who is counted when that changed; while waiting, re-send."""
+    def _publish_roster(self, waiting=(), wall=None):
+        """
+        Tell the participants who is counted when that changed; while waiting, re-send.
+
+        Return whether the clock should re-send its current /clock too (the step has been held
+        since wall for longer than the re-send wait).
+        """
         ledger = self.ledger
         now = time.monotonic()
         # Only once the step has been held that long: a step that settles in time (nearly all)
         # sends /clock once.
-        resend = waiting and now - max(self.clock.wall, self._resent_wall) >= self._resend_s
+        resend = bool(waiting) and now - max(wall, self._resent_wall) >= self._resend_s
         if ledger.version == self._roster_version and not resend:
-            return
+            return False
         if resend:
-            self.clock.repeat()
             self._resent_wall = now
             self._resend_s = min(2.0 * self._resend_s, RESEND_MAX_S)
         now_ns = self.sim.now_ns()
@@ -240,6 +232,7 @@ class LockstepOwner:
         self._announced = roster.members
         self._roster_version = ledger.version
         self._roster_pub.publish(String(data=roster.encode()))
+        return resend
 
     def _publishers_text(self, topic):
         """

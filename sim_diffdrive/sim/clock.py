@@ -20,8 +20,9 @@ How ``unicycle_sim`` keeps time: one of four clocks, chosen once at start (``mak
   clock it takes part in that simulator's lockstep, so that simulator waits for this robot.
 - ``FreeClock`` (``publish_clock``, ``lockstep`` false): the node owns time and steps it on a
   wall timer at up to ``real_time_factor``, pacing itself by how fast the graph reacts.
-- ``LockstepClock`` (``publish_clock``, ``lockstep``): the node owns time and steps when every
-  participant has answered the last step (lockstep/owner.py; docs/time.md).
+- ``LockstepClock`` (``publish_clock``, ``lockstep``): the node owns time and steps when its
+  LockstepOwner, a policy, says every participant has answered the last step
+  (lockstep/owner.py; docs/time.md).
 - ``SteppedClock``: the node owns time and something else calls ``step()``: SimGraph, the
   in-process harness, after each step has settled.
 
@@ -271,12 +272,17 @@ class FreeClock(_TimedClock):
 
 
 class LockstepClock(_TimedClock):
-    """Owned time stepped when every participant has answered (see lockstep/owner.py)."""
+    """
+    Owned time stepped when every participant has answered (see lockstep/owner.py).
+
+    The clock looks at each tick of its timer and whenever the owner has news: it asks the
+    owner how many steps it may take, takes them, and dates them on its wall schedule.
+    """
 
     def __init__(self, sim):
         super().__init__(sim)
         # Before the robots' cmd_vel subscriptions: see LockstepOwner.__init__.
-        self.owner = LockstepOwner(sim, self)
+        self.owner = LockstepOwner(sim, self.topic, on_news=self._look)
 
     def start(self):
         self.owner.start()
@@ -290,7 +296,33 @@ class LockstepClock(_TimedClock):
         self.owner.rescheduled()  # the time since the last look is no stall
 
     def _on_timer(self):
-        self.owner.try_step()
+        self._look()
+
+    def _look(self):
+        """Take the steps the owner allows now; re-send /clock when it says so."""
+        wall = self.wall
+        steps, resend = self.owner.may_step(time.monotonic(), wall, self.budget_s,
+                                            self.period_s())
+        if resend:
+            self.repeat()
+        for _ in range(steps):
+            self.step()
+        if steps:
+            self._keep_schedule(wall, steps)
+
+    def _keep_schedule(self, wall, steps):
+        """
+        Date the steps just taken on the wall schedule, not at the moment they ended.
+
+        The timer fires once per step budget; were the last step dated when it ended, the next
+        tick would find a little less than a budget waited and skip, halving the rate.  Far
+        behind (the clock was held, or the machine is slower than real_time_factor), the
+        schedule starts again from now rather than catching up in a burst.
+        """
+        budget = self.budget_s
+        scheduled = wall + steps * budget
+        now = time.monotonic()
+        self.wall = scheduled if now - scheduled < budget else now
 
     def before_step(self, step_ns):
         self.owner.next_step(step_ns)
