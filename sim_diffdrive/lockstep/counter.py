@@ -23,6 +23,16 @@ A participant (participant.py) sends them to the simulator in its answers; the s
 node's subscription callbacks, timer callbacks and ``publish`` methods, so the node's code
 does not change.  ``MessageCounter.of(node, ...)`` is the only place that wraps: a node has
 one counter however many users it has, each adding itself to ``listeners``.
+
+Being the one place that wraps rclpy's objects, it relies on rclpy behaviours that no API
+promises: a subscription's (a raw one's too) and a timer's ``callback`` attribute is read at
+dispatch, under both executors; a ``publish`` set on a publisher shadows the method, and
+``node.publishers`` holds the objects created; the TimeSource's /clock subscription is one of
+``node.subscriptions``; when a sim-time timer's callback runs, rcl has moved its schedule on;
+``reset()`` puts the next call a period after now, and writing ``timer_period_ns`` moves no
+call; a jump pre-callback runs before each change of the clock; and the EventsExecutor runs a
+sim-time timer's event more than once for one due time (why the schedule is put back).
+test/test_rclpy_behaviour.py pins each, so an rclpy update that changes one fails there.
 """
 
 import struct
@@ -230,8 +240,18 @@ class MessageCounter:
 
 
 def _next_call_at(timer, now_ns, due_ns):
-    """Make timer's next call due_ns (> now_ns) and keep its period (rclpy has no such call)."""
+    """
+    Make timer's next call due_ns (> now_ns) and keep its period (rclpy has no such call).
+
+    A reset puts the next call a period from now: due_ns itself for a duplicate at the clock
+    time of a run that fell on its due time.  Any other due_ns (a run late for its due time, a
+    put-back at a later clock time) needs a period of due_ns - now_ns for the reset, written
+    back after it (writing the period moves no call).
+    """
     period_ns = timer.timer_period_ns
+    if due_ns - now_ns == period_ns:
+        timer.reset()
+        return
     timer.timer_period_ns = due_ns - now_ns
     timer.reset()  # the next call one (temporary) period from now
     timer.timer_period_ns = period_ns
