@@ -124,7 +124,7 @@ class Participant:
     @property
     def clock_step_ns(self):
         """
-        The simulated time between the node's last two /clock messages [ns], or None.
+        Return the simulated time between the node's last two /clock messages [ns], or None.
 
         The node this participant was made on; None until its clock has moved once.  A
         simulator steps evenly: it is the step the clock will next advance by.

@@ -1,0 +1,234 @@
+# Copyright 2026 motion_challenges contributors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+A motion's eye on its robot: waiting for it to be there, then watching that it stays.
+
+Waiting: the robot (the node that publishes the odometry and subscribes cmd_vel, or with
+``wait_for_odom`` false any cmd_vel subscriber), the simulator's lockstep, odometry and, on
+sim time, the clock; given up after ``start_timeout`` [s, wall time, counted from
+``start()``].  Watching, mid-motion: odometry that stops or comes from two publishers,
+simulated time that stands still or goes back, a simulator that went on without the motion.
+On sim time odometry goes through a queue and is used at the first tick after its stamp
+(``take_early_odoms``).  The node owns one RobotWatch and wires its odometry subscription, its
+watchdog timer and its clock's jump callback to it; what the watch finds ends the run through
+the node (``finish``, or ``distrust`` for odometry that cannot be trusted).
+"""
+
+import time
+
+from motion_challenges.motion_state import MotionState
+from motion_challenges.odometry import OdomPose
+from sim_diffdrive.node_names import node_names
+from sim_diffdrive.runtime import EXIT_FAILED
+from sim_diffdrive.throttle import Throttle
+
+_NS = 1_000_000_000
+# Odometry stamped this far from a wall-time node's clock, with /clock published, is on
+# simulated time [s]: further than any clock skew between two hosts.
+_CLOCKS_APART_S = 60.0
+
+
+class RobotWatch:
+    """
+    Waits for a motion node's robot and watches it (see the module docstring).
+
+    ``use_odom(odom)`` takes each OdomPose once it is due; ``distrust(why)`` ends the run on
+    odometry or a clock that cannot be trusted.
+    """
+
+    def __init__(self, node, odom_topic, use_odom, distrust):
+        self._node = node
+        self._odom_topic = odom_topic
+        self._use_odom = use_odom
+        self._distrust = distrust
+        self._waiting_log = Throttle(2.0)
+        self._odom_wall = None  # when odometry last came [s, monotonic]
+        self._wall_start = None
+        self._ready = False
+        # On sim time, the clock as the watchdog last saw it, and when it last saw it move.
+        self._clock_seen_ns = None
+        self._clock_moved_wall = None
+        # On sim time: odometry not used yet, in stamp order (see on_odom).
+        self._early_odoms = []
+
+    def start(self):
+        """Start waiting: start_timeout counts from here."""
+        # A user answering questions is not a missing robot.
+        self._wall_start = time.monotonic()
+        self._ready = True
+
+    def stop(self):
+        """Stop watching (the run has finished): the queued odometry is dropped."""
+        self._early_odoms.clear()
+
+    # -- odometry and the clock --------------------------------------------------------------
+
+    def on_odom(self, msg):
+        """Take odometry (bytes): use it now, or on sim time at the first tick after it."""
+        node = self._node
+        odom = OdomPose(msg)
+        self._odom_wall = time.monotonic()
+        if node.sim_time and node.state != MotionState.FINISHED:
+            # In stamp order (the order it arrives in), through the queue: odometry from before
+            # the clock used at once while older odometry still waited for a tick was taken for
+            # time going back, after a clock that jumped ahead (a simulator that went on).
+            self._early_odoms.append(odom)
+            self.take_early_odoms(node.now_ns())
+            return
+        self._use_odom(odom)
+
+    def take_early_odoms(self, now_ns):
+        """Use the queued odometry stamped before now_ns, oldest first."""
+        early = self._early_odoms
+        while early and early[0].stamp_ns < now_ns and self._node.state != MotionState.FINISHED:
+            self._use_odom(early.pop(0))
+
+    def on_time_jump(self, jump):
+        """Drop the queue when simulated time goes back; mid-motion on odometry, give up."""
+        self._early_odoms.clear()
+        if self._node.needs_odom and self._node.state == MotionState.RUNNING:
+            self._distrust(f'Simulated time went back {-jump.delta.nanoseconds / _NS:.3f} s')
+
+    # -- waiting for the robot ---------------------------------------------------------------
+
+    def missing(self):
+        """Return what the motion still waits for, or '' when it can start."""
+        node = self._node
+        cmd_topic = node.cmd_pub.topic_name
+        if node.params.wait_for_odom:
+            robot = self._robot_node()
+            if robot is None:
+                return (f'the robot (a node that publishes {self._odom_topic} and subscribes '
+                        f'{cmd_topic})')
+            if node.cmd_pub.get_subscription_count() < node.count_subscribers(cmd_topic):
+                return f'{cmd_topic} to be matched by {robot}'
+        elif node.cmd_pub.get_subscription_count() == 0:
+            return f'a subscriber on {cmd_topic}'
+        lockstep = node.lockstep
+        if lockstep is not None and lockstep.owner_present:
+            if not lockstep.joined:
+                return 'the simulator to take this node into its lockstep'
+            if not lockstep.counted_on(cmd_topic):
+                return f'the node that drives on {cmd_topic} to join the lockstep'
+        if node.odom is None and (node.needs_odom or node.params.wait_for_odom
+                                  or node.count_publishers(self._odom_topic)):
+            # Without wait_for_odom open loop needs none, but where there is some, the closing
+            # line uses it.
+            return 'odometry on ' + self._odom_topic
+        return ''
+
+    def clock_clash(self, now_ns):
+        """Return why this node's wall clock cannot be the robot's, or '' (sim time: '')."""
+        node = self._node
+        if node.sim_time or node.odom is None:
+            return ''
+        apart_s = abs(node.odom.stamp_ns - now_ns) / _NS
+        clock_topic = node.resolve_topic_name('/clock')
+        if apart_s < _CLOCKS_APART_S or not node.count_publishers(clock_topic):
+            return ''
+        # Judged by stamps and the clock alike, the run would go wrong in ways that point
+        # elsewhere (no odometry after the stop, a jump): say what is wrong before moving.
+        return (f'Odometry on {self._odom_topic} is stamped {node.odom.stamp_ns / _NS:.3f} s, '
+                f"{apart_s:.0f} s from this node's clock (wall time), and {clock_topic} is "
+                'published: the robot runs on simulated time. Start this motion with -p '
+                'use_sim_time:=true. Nothing moved.')
+
+    def _robot_node(self):
+        """Return the name of a node that publishes our odometry and subscribes our cmd_vel."""
+        node = self._node
+        publishers = node.get_publishers_info_by_topic(self._odom_topic)
+        subscribers = node.get_subscriptions_info_by_topic(node.cmd_pub.topic_name)
+        robots = set(node_names(publishers)) & set(node_names(subscribers))
+        return min(robots) if robots else None
+
+    # -- watching it -------------------------------------------------------------------------
+
+    def dropped_mid_run(self):
+        """Fail, stopping the robot, once the simulator has gone on without this node."""
+        node = self._node
+        dropped_ns = node.lockstep.dropped_ns if node.lockstep is not None else None
+        if dropped_ns is None or dropped_ns < node.start_ns:
+            return False  # never, or while waiting to start: nothing was commanded yet
+        into_s = (dropped_ns - node.start_ns) / _NS
+        node.finish(EXIT_FAILED, f'The simulator went on without this node at '
+                                 f'{dropped_ns / _NS:.3f} s, {into_s:.3f} s into the motion, '
+                                 'stepping without waiting for its commands; '
+                                 'stopped the robot, as the run can no longer end where it should')
+        return True
+
+    def on_watchdog(self):
+        """Look at the robot (called every 0.5 s on the wall clock)."""
+        node = self._node
+        if node.needs_odom and node.state == MotionState.RUNNING:
+            self._watch_odometry()
+        elif self._ready and node.state == MotionState.WAITING:
+            self._watch_start()
+        if node.sim_time and node.state in (MotionState.RUNNING, MotionState.SETTLING):
+            self._watch_clock()
+
+    def _watch_clock(self):
+        # On sim time the ticks come with the clock: a simulator that died mid-motion stops
+        # them, and an open-loop motion would wait for its next tick forever.
+        node = self._node
+        now_ns, wall = node.now_ns(), time.monotonic()
+        if now_ns != self._clock_seen_ns or self._clock_moved_wall is None:
+            self._clock_seen_ns, self._clock_moved_wall = now_ns, wall
+            return
+        last_sign = self._clock_moved_wall
+        if node.lockstep is not None and node.lockstep.roster_wall is not None:
+            last_sign = max(last_sign, node.lockstep.roster_wall)  # as in _watch_odometry
+        silent = wall - last_sign
+        if silent > node.params.odom_timeout:
+            node.finish(EXIT_FAILED, f'Simulated time stood still at {now_ns / _NS:.3f} s for '
+                                     f'{silent:.1f} s mid-motion with no word from the '
+                                     'simulator; stopped the robot (is the simulator still '
+                                     'running?)')
+
+    def _watch_odometry(self):
+        node = self._node
+        publishers = node.count_publishers(self._odom_topic)
+        if publishers != 1:
+            # A simulator restarted after a crash shows up beside its predecessor (gone for
+            # good, but still in discovery for a while): its odometry can look continuous when
+            # its clock or pose happens to have caught up with the last.
+            self._distrust(f'{publishers} publishers on {self._odom_topic} mid-motion')
+            return
+        last_sign = self._odom_wall
+        if node.lockstep is not None and node.lockstep.roster_wall is not None:
+            # In lockstep the simulator repeats its roster while it holds the clock for a slow
+            # or joining node: odometry is late then because time stands still.
+            last_sign = max(last_sign, node.lockstep.roster_wall)
+        silent = time.monotonic() - last_sign
+        if silent > node.params.odom_timeout:
+            node.finish(EXIT_FAILED, f'No odometry for {silent:.1f} s mid-motion; stopped '
+                                     'the robot (is the simulator still running?)')
+
+    def _watch_start(self):
+        node = self._node
+        missing = self.missing()
+        if not missing and node.get_parameter('use_sim_time').value and node.now_ns() == 0:
+            missing = 'simulated time on /clock (use_sim_time is true)'
+        if not missing:
+            return
+        waited = time.monotonic() - self._wall_start
+        if waited > node.params.start_timeout:
+            hint = ('it runs but has not heard this node yet (a slow or lossy link: raise '
+                    'start_timeout; a process killed while it ran on this machine can leave '
+                    'it deaf to new ones: restart it).' if 'lockstep' in missing else
+                    'is the robot (or unicycle_sim) running?')
+            node.finish(EXIT_FAILED, f'Gave up after {waited:.1f} s waiting for {missing}; '
+                                     f'{hint} Nothing moved.')
+        elif self._waiting_log.allows():
+            node.get_logger().info(f'Waiting for {missing} ...')
