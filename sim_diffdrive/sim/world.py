@@ -42,7 +42,8 @@ from sim_diffdrive.kinematics import integrate
 from sim_diffdrive.kinematics import integrate_all
 from sim_diffdrive.kinematics import limit_command
 from sim_diffdrive.world.contact import overlaps_robot
-from sim_diffdrive.world.contact import robot_contact
+from sim_diffdrive.world.tracks import earliest_touch
+from sim_diffdrive.world.tracks import Track
 
 _NS = 1_000_000_000
 # In World.deadline_ns: no cmd_vel timeout pending.
@@ -392,14 +393,14 @@ class World:
         if not drives:
             return
         mx, my, myaw = self.map_poses()
-        tracks = [_Track(*drives[i][1], drives[i][2]) if i in drives
-                  else _Track(float(mx[i]), float(my[i]), float(myaw[i]), [])
+        tracks = [Track(*drives[i][1], drives[i][2]) if i in drives
+                  else Track(float(mx[i]), float(my[i]), float(myaw[i]), [])
                   for i in range(len(self))]
         reach = 2.0 * self.radius
         moved = set(drives)
         touched = set()  # pairs stopped against each other (their cut tracks end touching)
         while True:
-            first = _earliest_touch(tracks, reach, self.radius, touched)
+            first = earliest_touch(tracks, reach, self.radius, touched)
             if first is None:
                 break
             at, i, j = first
@@ -424,65 +425,3 @@ class World:
                 break
             x, y, yaw = integrate(x, y, yaw, linear, angular, min(seconds, at - begin))
         self.x[i], self.y[i], self.yaw[i] = x, y, yaw
-
-
-class _Track:
-    """A robot's way through a step in the map: its pose at the start and its timed arcs."""
-
-    def __init__(self, x, y, yaw, arcs_):
-        self.start = (x, y, yaw)
-        self.arcs = arcs_  # (begin [s into the step], seconds, linear, angular), in order
-        self.length = sum(abs(linear) * seconds for _, seconds, linear, _ in arcs_)
-
-    def at(self, t):
-        """Return (x, y, yaw, linear, angular): the pose at t [s] and the arc held from there."""
-        x, y, yaw = self.start
-        for begin, seconds, linear, angular in self.arcs:
-            if t < begin + seconds:
-                if t > begin:
-                    x, y, yaw = integrate(x, y, yaw, linear, angular, t - begin)
-                return (x, y, yaw, linear, angular) if t >= begin else (x, y, yaw, 0.0, 0.0)
-            x, y, yaw = integrate(x, y, yaw, linear, angular, seconds)
-        return x, y, yaw, 0.0, 0.0
-
-    def bounds(self):
-        return [edge for begin, seconds, _, _ in self.arcs for edge in (begin, begin + seconds)]
-
-    def cut(self, t):
-        """Return this track, standing still from t on."""
-        kept = [(begin, min(seconds, t - begin), linear, angular)
-                for begin, seconds, linear, angular in self.arcs if begin < t]
-        return _Track(*self.start, kept)
-
-
-def _earliest_touch(tracks, reach, radius, touched):
-    """Return (t [s], i, j) of the first two tracks that touch, or None."""
-    moved = np.array([track.length for track in tracks])
-    if not moved.any():
-        return None
-    x = np.array([track.start[0] for track in tracks])
-    y = np.array([track.start[1] for track in tracks])
-    apart = np.hypot(x[:, None] - x[None, :], y[:, None] - y[None, :])
-    near = apart - (moved[:, None] + moved[None, :]) <= reach + 1e-9
-    near &= (moved[:, None] + moved[None, :]) > 0.0
-    first = None
-    rows, columns = np.nonzero(np.triu(near, 1))
-    for i, j in zip(rows.tolist(), columns.tolist()):
-        if (i, j) in touched:
-            continue
-        at = _touch(tracks[i], tracks[j], reach, radius)
-        if at is not None and (first is None or at < first[0]):
-            first = (at, i, j)
-    return first
-
-
-def _touch(a, b, reach, radius):
-    """Return the first time [s] tracks a and b come reach apart while closing in, or None."""
-    edges = sorted({0.0, *a.bounds(), *b.bounds()})
-    for begin, end in zip(edges, edges[1:]):
-        if end <= begin:
-            continue
-        at = robot_contact(radius, a.at(begin), b.at(begin), end - begin)
-        if at is not None:
-            return begin + at
-    return None

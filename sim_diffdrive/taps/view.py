@@ -61,6 +61,10 @@ import uuid
 import numpy as np
 from sim_diffdrive.taps.view_page import page_url
 from sim_diffdrive.taps.view_page import ViewerPage
+from sim_diffdrive.taps.view_shapes import path_strips
+from sim_diffdrive.taps.view_shapes import robot_colors
+from sim_diffdrive.taps.view_shapes import scan_points
+from sim_diffdrive.taps.view_shapes import solid_boxes
 
 DEFAULT_HOST = '127.0.0.1'
 TIMELINE = 'sim_time'
@@ -77,17 +81,12 @@ STOP_TIMEOUT_S = 3.0
 BODY_HALF_SIZE = (0.15, 0.12, 0.05)
 ARROW_LENGTH = 0.35
 PATH_RADIUS = 0.01
-# The map's obstacle cells as drawn: flat slabs just under the robots; the scan's hit points.
-MAP_HALF_HEIGHT = 0.02
 MAP_RGB = (150, 150, 150)
 SCAN_RADIUS = 0.015
 SCAN_Z = 0.03
-# A step longer than its robot can have driven is a jump (a reset): no path segment joins it.
-_JUMP_MARGIN_M = 1e-3
 # More robots than these: no name labels in the view, no legend in the plots (they pile up).
 _LABELLED_ROBOTS = 16
 _LEGEND_ROBOTS = 1
-_GOLDEN = 0.618033988749895
 
 
 class BrowserView:
@@ -424,71 +423,10 @@ class _Frames:
                                           stamps, xs, ys, linear)))
         frame = Frame(self.stamps[:steps].copy(), *(
             getattr(self, name)[:steps].copy() for name in self.FIELDS),
-            _strips(stamps, xs, ys, linear))
+            path_strips(stamps, xs, ys, linear))
         self._path_end = tuple(value[..., -1].copy() for value in (stamps, xs, ys, linear))
         self.steps = 0
         return frame
-
-
-def _strips(stamps, xs, ys, linear):
-    """
-    Return each robot's path through xs, ys (count, points) as strips (count, points, 3).
-
-    A step longer than the robot can have driven in it is a jump (a reset, a new initial
-    pose): the robot's points before it are moved onto the point after it, so no segment
-    joins the jump's two ends.  None with fewer than two points.
-    """
-    if xs.shape[1] < 2:
-        return None
-    reach = (np.maximum(np.abs(linear[:, 1:]), np.abs(linear[:, :-1])) * (np.diff(stamps) * 1e-9)
-             + _JUMP_MARGIN_M)
-    jumps = np.hypot(np.diff(xs), np.diff(ys)) > reach
-    xs, ys = xs.copy(), ys.copy()
-    for robot, after in zip(*np.nonzero(jumps)):  # rare: one loop turn per jump
-        xs[robot, :after + 1] = xs[robot, after + 1]
-        ys[robot, :after + 1] = ys[robot, after + 1]
-    return np.stack([xs, ys, np.zeros_like(xs)], axis=2)
-
-
-def scan_points(ranges, angles, x, y, yaw):
-    """
-    Return the hit points of scans, (points (n, 2), owners (n,)): each robot's in one frame.
-
-    ranges is (robots, beams), angles the beams' angles to the heading (beams,), and x, y,
-    yaw (robots,) the scanners' poses in the frame the points are wanted in; beams without a
-    finite range (no return, too near) give no point.  owners is each point's robot.
-    """
-    ranges = np.asarray(ranges, dtype=float)
-    owners, beams = np.nonzero(np.isfinite(ranges))
-    hit = ranges[owners, beams]
-    heading = np.asarray(yaw, dtype=float)[owners] + np.asarray(angles, dtype=float)[beams]
-    points = np.empty((len(hit), 2))
-    points[:, 0] = np.asarray(x, dtype=float)[owners] + hit * np.cos(heading)
-    points[:, 1] = np.asarray(y, dtype=float)[owners] + hit * np.sin(heading)
-    return points, owners
-
-
-def solid_boxes(grid):
-    """
-    Return a map's obstacle cells as boxes, (centers (n, 3), half_sizes (n, 3)), map frame.
-
-    One box per run of obstacle cells along a row, so a wall is a box or a few, not a box per
-    cell; the boxes are turned by the map origin's yaw (each box's rotation).
-    """
-    solid = np.asarray(grid.solid, dtype=np.int8)
-    edges = np.diff(np.pad(solid, ((0, 0), (1, 1))), axis=1)
-    rows, starts = np.nonzero(edges == 1)
-    _, ends = np.nonzero(edges == -1)  # row by row, in the same order as the starts
-    res = grid.resolution
-    gx, gy = 0.5 * (starts + ends) * res, (rows + 0.5) * res
-    mx, my = grid.from_grid(gx, gy)
-    centers = np.zeros((len(rows), 3))
-    centers[:, 0], centers[:, 1] = mx, my
-    half_sizes = np.empty((len(rows), 3))
-    half_sizes[:, 0] = 0.5 * (ends - starts) * res
-    half_sizes[:, 1] = 0.5 * res
-    half_sizes[:, 2] = MAP_HALF_HEIGHT
-    return centers, half_sizes
 
 
 def rerun_program():
@@ -505,18 +443,6 @@ def rerun_program():
     if program is None:
         raise ImportError('the rerun program of rerun-sdk is not installed')
     return program
-
-
-def robot_colors(count):
-    """Return count distinct RGB colours (uint8), the same for the same index in every run."""
-    hues = (0.07 + _GOLDEN * np.arange(count)) % 1.0  # orange first: not Rerun's own blue
-    return (np.stack([_hsv_channel(hues, shift) for shift in (5.0, 3.0, 1.0)], axis=1)
-            * 255).round().astype(np.uint8)
-
-
-def _hsv_channel(hues, shift, saturation=0.75, value=0.9):
-    k = (shift + hues * 6.0) % 6.0
-    return value - value * saturation * np.clip(np.minimum(k, 4.0 - k), 0.0, 1.0)
 
 
 def _grpc_port(host, view_port):
