@@ -153,6 +153,7 @@ def test_quick_run_writes_every_row(tmp_path):
     assert rows['integration_error']['arc_max_m'] < 1e-8
     assert rows['scan_cast']['fleet_cast_s'] < rows['scan_cast']['fleet_loop_s']
     assert tuple(rows['rtf_processes']['rtf']) == sizes.process_motions
+    assert rows['rtf_processes']['round_trip_us'] > 0.0
     assert rows['latency']['samples'] + rows['latency']['lost'] == sizes.latency_samples
     assert rows['cpu_idle']['idle_percent'] >= 0.0
     assert rows['cpu_idle']['rclpy_floor_percent'] > 0.0

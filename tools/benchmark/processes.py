@@ -19,10 +19,12 @@ Rows 7-12: the executables as a user starts them, over DDS, watched from this pr
 """
 
 import itertools
+import json
 import math
 import os
 import random
 import re
+import subprocess
 import sys
 import time
 
@@ -109,6 +111,62 @@ try:
 except KeyboardInterrupt:
     pass
 """
+# Row 7's reference: two processes that only ping-pong one raw std_msgs/UInt64 (its bytes
+# through rclpy's serialized publish, received with raw=True), each spinning an EventsExecutor
+# with spin_once(timeout_sec=...) as the executables do: the floor of a lockstep step's round
+# trip between two Python processes.  Arguments: 'ping' round_trips warm_ups, or 'pong'.  The
+# ping side prints the round trips [ns] after PING_PONG_PREFIX and exits.
+PING_PONG_PREFIX = 'round trips ns: '
+PING_PONG = """
+import json
+import sys
+import time
+
+import rclpy
+from rclpy.experimental import EventsExecutor
+from rclpy.serialization import serialize_message
+from sim_diffdrive.dds_profile import use_package_profile
+from std_msgs.msg import UInt64
+
+use_package_profile()  # before the first node, as runtime.run() does for the executables
+role = sys.argv[1]
+rclpy.init()
+node = rclpy.create_node(f'bench_{role}', enable_rosout=False)
+executor = EventsExecutor()
+executor.add_node(node)
+out, back = ('bench_ping', 'bench_pong')[::1 if role == 'ping' else -1]
+publisher = node.create_publisher(UInt64, out, 10)
+try:
+    if role == 'pong':
+        node.create_subscription(UInt64, back, publisher.publish, 10, raw=True)
+        while rclpy.ok():
+            executor.spin_once(timeout_sec=0.1)
+    else:
+        round_trips, warm_ups = int(sys.argv[2]), int(sys.argv[3])
+        heard = []
+        node.create_subscription(UInt64, back, heard.append, 10, raw=True)
+        due = time.monotonic() + 30.0
+        while (publisher.get_subscription_count() == 0 or node.count_publishers(back) == 0):
+            if time.monotonic() > due:
+                sys.exit('no pong process matched')
+            executor.spin_once(timeout_sec=0.01)
+        times = []
+        for k in range(warm_ups + round_trips):
+            data = serialize_message(UInt64(data=k))
+            sent = time.perf_counter_ns()
+            publisher.publish(data)
+            due = time.monotonic() + 5.0
+            while not heard:
+                if time.monotonic() > due:
+                    sys.exit(f'round trip {k} not answered in 5 s')
+                executor.spin_once(timeout_sec=0.1)
+            times.append(time.perf_counter_ns() - sent)
+            if heard.pop() != data or heard:
+                sys.exit(f'round trip {k}: another answer')
+        print('%s%s' % (sys.argv[4], json.dumps(times[warm_ups:])), flush=True)
+except KeyboardInterrupt:
+    pass
+"""
 LEFT = re.compile(r'Lockstep: \S+ left at \S+ s \((\d+) answers in (\d+) steps\)')
 DONE = re.compile(r'Done in ([0-9.]+) s \(([0-9.]+) s wall\).* error ([0-9.]+) mm, ([0-9.]+) deg')
 
@@ -165,6 +223,25 @@ def motion_processes(run):
                 for motion in run.sizes.process_motions}
 
 
+def ping_pong(run):
+    """Return the round trips [us] of PING_PONG's two processes (core.SIZES 'ping_pongs')."""
+    round_trips, warm_ups = run.sizes.ping_pongs
+    pong = run.start(sys.executable, '-c', PING_PONG, 'pong')
+    ping = run.start(sys.executable, '-c', PING_PONG, 'ping', str(round_trips), str(warm_ups),
+                     PING_PONG_PREFIX)
+    try:
+        ping.wait(60.0 + 0.05 * (round_trips + warm_ups))
+    except subprocess.TimeoutExpired:
+        pass  # stopped below, its log raised
+    finally:
+        out = run.stop(ping)
+        run.stop(pong)
+    line = next((line for line in out.splitlines() if line.startswith(PING_PONG_PREFIX)), None)
+    if ping.returncode or line is None:
+        raise RuntimeError(f'the ping-pong processes failed ({ping.returncode}):\n{out}')
+    return [ns / 1000.0 for ns in json.loads(line[len(PING_PONG_PREFIX):])]
+
+
 @row('processes')
 def rtf_processes(run):
     results = run.once(motion_processes)
@@ -180,21 +257,37 @@ def rtf_processes(run):
     worst_mm, worst_deg = np.nanmax(list(errors.values()), axis=(0, 1))
     answers = {m: np.mean([r.get('answers_per_step', math.nan) for r in runs])
                for m, runs in results.items()}
+    # Beside it, in the same run: what one round trip between two Python processes costs.
+    round_trips = run.once(ping_pong)
+    round_trip_us = float(np.median(round_trips))
+    # A step is 20 ms of simulated time: at the slowest motion's factor, its wall cost.
+    slowest = min((x for x in rtf.values() if math.isfinite(x)), default=math.nan)
+    step_us = 1e6 * 0.02 / slowest if slowest > 0.0 else math.nan
+    ratio = step_us / round_trip_us
     return Row(
         'real-time factor across processes (sim s / wall s), from odometry',
         ', '.join(f'{m} {core.fmt_x(x)}' for m, x in rtf.items()) + '; identical: '
         + {True: 'yes', False: 'no', None: '- (one run)'}[identical]
-        + (f'; {len(failed)} runs failed' if failed else ''), f'clock set to {run.rtf:g}x',
+        + (f'; {len(failed)} runs failed' if failed else ''),
+        f'clock set to {run.rtf:g}x; ping-pong round trip {round_trip_us:.0f} us; a step costs '
+        f'{step_us:.0f} us = {ratio:.1f}x',
         f'unicycle_sim (publish_clock, real_time_factor {run.rtf:g}, 50 Hz) and the motion '
         'executables, a fresh simulator each run; sim and wall s of the movement on odometry. '
         "In lockstep: one round trip per 20 ms step; answers per step (the simulator's "
         'count): ' + ', '.join(f'{m} {a:.2f}' for m, a in answers.items())
-        + f'. Worst error {worst_mm:.3g} mm, '
+        + '. Ping-pong: two Python processes that only bounce one raw std_msgs/UInt64 '
+        "(rclpy's serialized publish, raw subscriptions, EventsExecutor spin_once loops, the "
+        f"package's DDS profile): median of {len(round_trips)} round trips after "
+        f'{run.sizes.ping_pongs[1]} warm-up (p90 {np.percentile(round_trips, 90):.0f} us); '
+        "a step's cost: 20 ms of simulated time at the slowest motion's factor, in round "
+        f'trips. Worst error {worst_mm:.3g} mm, '
         f'{worst_deg:.3g} deg.' + ''.join(f' Failed: {f}.' for f in failed),
         f'>= {core.TARGET_RTF_PROCESSES:g}x',
         not failed and min(rtf.values()) >= core.TARGET_RTF_PROCESSES,
         {'rtf': rtf, 'identical': identical, 'errors_mm_deg': errors, 'failures': failed,
-         'answers_per_step': answers,
+         'answers_per_step': answers, 'round_trip_us': round_trip_us,
+         'round_trip_p90_us': float(np.percentile(round_trips, 90)), 'step_us': step_us,
+         'step_over_round_trip': ratio,
          'failure_logs': [core.tail(r['log']) for rs in results.values() for r in rs
                           if r['exit']]})
 
