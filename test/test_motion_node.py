@@ -65,8 +65,9 @@ def test_without_a_robot_it_gives_up_start_timeout_after_the_answers(graph):
     waited = time.monotonic() - started
     assert node.exit_code == EXIT_FAILED
     assert node.state is MotionState.FINISHED
-    # The watchdog looks every 0.5 s.
-    assert START_TIMEOUT <= waited <= START_TIMEOUT + 1.0
+    # Counted from the answers, not from the node's start (then it would have given up
+    # TYPING_S sooner).  How late after that the watchdog notices is load, not behaviour.
+    assert waited >= START_TIMEOUT
 
 
 def test_a_simulator_in_lockstep_that_never_takes_it_in_is_named_not_taken_for_absent(
