@@ -300,3 +300,18 @@ def test_a_controller_in_another_process_reads_the_scan_in_lockstep_exactly(grap
     sim.send(signal.SIGINT)
     assert sim.wait(10.0) == 0
     assert 'Traceback' not in sim.output()
+
+
+def test_an_initialpose_into_a_wall_is_refused_and_the_robot_stays(graph, capfd):
+    graph.sim(map_file=ROOM, initial_x=0.5, initial_y=0.3)
+    rviz = graph.add(Node('rviz', context=graph.context))
+    publisher = rviz.create_publisher(PoseWithCovarianceStamped, 'initialpose', 10)
+    graph.step_for(0.2)
+    publisher.publish(pose_estimate('map', 2.05, 1.0, 0.0))  # inside the inner wall
+    publisher.publish(pose_estimate('odom', 0.0, -0.4, 0.0))  # 0.05 m from the bottom wall
+    graph.step_for(0.3)
+    assert graph.pose() == (0.5, 0.3, 0.0)
+    refused = [line for line in capfd.readouterr().err.splitlines()
+               if 'Refusing initialpose' in line]
+    assert len(refused) == 2 and all('inside a wall' in line for line in refused)
+    assert '(2.050, 1.000)' in refused[0] and '(0.000, -0.400)' in refused[1]
