@@ -179,7 +179,7 @@ class UnicycleSim(Node):
         self.clock = make_clock(self, stepped)
         # Where else the simulator's traffic goes (an MCAP file, Foxglove): see taps/.
         self.taps = open_taps(self)
-        self.robots = [Robot(self, i, name) for i, name in enumerate(names)]
+        self.robots = [Robot(self, i, name, self.publish_odom) for i, name in enumerate(names)]
         # A frame is checked against the other's value and the robots' prefixes, which a Spec
         # cannot know; added after declare()'s callbacks, this one runs before them.
         self.add_on_set_parameters_callback(self._refuse_bad_frames)
@@ -361,7 +361,8 @@ class UnicycleSim(Node):
         self._types_checked_at = time.monotonic()
         types = dict(self.get_topic_names_and_types())
         for robot in self.robots:
-            robot.check_command_type(types.get(robot.cmd_topic, ()))
+            robot.check_command_type(types.get(robot.cmd_topic, ()),
+                                     self.get_publishers_info_by_topic)
 
     def shutdown_hook(self):
         """Close what the taps write (an MCAP file gets its index), whatever ended the run."""

@@ -61,12 +61,20 @@ class Robot:
     Robot number ``index`` of the simulator ``sim``: its topics and messages.
 
     ``name`` is '' for the simulator's one robot in its own namespace.  Its state is robot
-    ``index`` of ``sim.world``.
+    ``index`` of the world.  The node ``sim`` is used to make the robot's topics only: a robot
+    holds what it hands commands and poses to (the world, the clock, the taps, the logger),
+    not the node; ``on_placed`` is how the node hears that a robot was set down somewhere.
     """
 
-    def __init__(self, sim, index, name):
-        self.sim = sim
+    def __init__(self, sim, index, name, on_placed):
         self.world = sim.world
+        self.clock = sim.clock
+        self.taps = sim.taps
+        self.params = sim.params
+        self.logger = sim.get_logger()
+        self._namespace = sim.get_namespace()
+        self._map_frame = sim.surroundings.map_frame if sim.surroundings else None
+        self._on_placed = on_placed
         self.index = index
         self.name = name
         self._warned_publishers = False
@@ -108,9 +116,8 @@ class Robot:
 
     def on_initial_pose(self, msg):
         """Set the robot down at the pose given (in its odometry frame or the map), at rest."""
-        sim = self.sim
         frame = self.odom_frame
-        map_frame = sim.surroundings.map_frame if sim.surroundings else None
+        map_frame = self._map_frame
         given = msg.header.frame_id.lstrip('/')
         p = msg.pose.pose
         values = (p.position.x, p.position.y, p.orientation.x, p.orientation.y,
@@ -126,7 +133,7 @@ class Robot:
             why = None
         yaw = yaw_from_quaternion(*values[2:]) if why is None else 0.0
         if why is None:
-            sim.advance_all(sim.now_ns())
+            self.world.step_to(self.clock.now_ns())
             try:
                 if given == frame:
                     self.reset(p.position.x, p.position.y, yaw)
@@ -135,12 +142,12 @@ class Robot:
             except PlacementError as error:
                 why = f'would put it where it cannot be: {error}'
         if why is not None:
-            sim.get_logger().warning(f'{self.label}Refusing initialpose: it {why}; the robot '
-                                     'stays where it is')
+            self.logger.warning(f'{self.label}Refusing initialpose: it {why}; the robot stays '
+                                'where it is')
             return
-        sim.get_logger().info(f'{self.label}Set to ({p.position.x:.3f}, {p.position.y:.3f}, '
-                              f'{yaw:.3f} rad) in {given} by initialpose, at rest')
-        sim.publish_odom()
+        self.logger.info(f'{self.label}Set to ({p.position.x:.3f}, {p.position.y:.3f}, '
+                         f'{yaw:.3f} rad) in {given} by initialpose, at rest')
+        self._on_placed()
 
     # -- commands ---------------------------------------------------------------------------
 
@@ -148,34 +155,32 @@ class Robot:
         """Take a geometry_msgs/TwistStamped's bytes: refuse it when stale, else follow it."""
         self._take_stamped(data)
         # Then the odometry step, if one is due: a backlog of commands must not hold it back.
-        self.sim.clock.step_if_due()
+        self.clock.step_if_due()
 
     def on_twist(self, data):
         """Take a geometry_msgs/Twist's bytes and follow it; then the odometry step, if due."""
-        sim = self.sim
-        if sim.taps:
-            sim.taps.write(self.cmd_topic, data, sim.now_ns())
+        if self.taps:
+            self.taps.write(self.cmd_topic, data, self.clock.now_ns())
         command = self._read(data, read_twist, _twist_fields)
         if command is not None:
             self.command(*command)
-        sim.clock.step_if_due()
+        self.clock.step_if_due()
 
     def _take_stamped(self, data):
-        sim = self.sim
-        if sim.taps:
-            sim.taps.write(self.cmd_topic, data, sim.now_ns())
+        if self.taps:
+            self.taps.write(self.cmd_topic, data, self.clock.now_ns())
         command = self._read(data, read_twist_stamped, _stamped_fields)
         if command is None:
             return
         stamp_ns, linear, angular = command
-        age_ns = sim.now_ns() - stamp_ns
-        limit_ns = round(sim.params.max_command_age * _NS)
+        age_ns = self.clock.now_ns() - stamp_ns
+        limit_ns = round(self.params.max_command_age * _NS)
         if stamp_ns != 0 and limit_ns > 0 and abs(age_ns) > limit_ns:
             if self._refusals.allows('stamp'):
                 when = 'old' if age_ns > 0 else 'in the future'
-                sim.get_logger().warning(
+                self.logger.warning(
                     f'{self.label}Refusing cmd_vel stamped {abs(age_ns) / _NS:.3f} s {when} '
-                    f'(more than max_command_age {sim.params.max_command_age:g} s); keeping '
+                    f'(more than max_command_age {self.params.max_command_age:g} s); keeping '
                     'the last command')
             return
         self.command(linear, angular, stamp_ns)
@@ -189,44 +194,47 @@ class Robot:
                 return fields(deserialize_message(data, self.cmd_type))
         except (struct.error, RuntimeError, ValueError) as error:
             if self._refusals.allows('decode'):
-                self.sim.get_logger().warning(
+                self.logger.warning(
                     f'{self.label}Refusing cmd_vel that does not decode as '
                     f'{self.cmd_type.__name__} ({error}); keeping the last command')
             return None
 
     def command(self, linear, angular, stamp_ns=None):
         """Follow (linear.x, angular.z) from now on (from stamp_ns on, when that is ahead)."""
-        sim = self.sim
         if not (abs(linear) <= COMMAND_LIMIT and abs(angular) <= COMMAND_LIMIT):
             # NaN fails both comparisons, so it is refused here too.
             if self._refusals.allows('value'):
-                sim.get_logger().warning(
+                self.logger.warning(
                     f'{self.label}Refusing cmd_vel with a non-finite or absurd value (linear.x='
                     f'{linear}, angular.z={angular}; the limit is {COMMAND_LIMIT:g}); keeping '
                     'the last command')
             return
-        now_ns = sim.now_ns()
-        if sim.clock.participant is not None and stamp_ns is not None and stamp_ns > now_ns:
+        now_ns = self.clock.now_ns()
+        if self.clock.participant is not None and stamp_ns is not None and stamp_ns > now_ns:
             # Sent for a clock step that is on its way to us: take effect then, not now.
             self.world.hold(self.index, stamp_ns, linear, angular)
             return
         self.world.command(self.index, linear, angular, now_ns)
-        sim.clock.command_arrived()
+        self.clock.command_arrived()
 
-    def check_command_type(self, types):
-        """Warn once while a publisher on cmd_vel sends another type (types: the topic's)."""
+    def check_command_type(self, types, publishers_of):
+        """
+        Warn once while a publisher on cmd_vel sends another type.
+
+        types: the topic's types in the graph; publishers_of(topic): its publishers' infos.
+        """
         ours = f'geometry_msgs/msg/{self.cmd_type.__name__}'
         others = [name for name in types if name != ours]
         if others:  # the types of its subscribers show there too: which publish?
-            others = sorted({info.topic_type for info in self.sim.get_publishers_info_by_topic(
-                self.cmd_topic)} - {ours})
+            others = sorted({info.topic_type for info in publishers_of(self.cmd_topic)}
+                            - {ours})
         if others and not self._warned_type:
             self._warned_type = True
             stamped = {'geometry_msgs/msg/Twist': 'false',
                        'geometry_msgs/msg/TwistStamped': 'true'}
             hint = (f' (stamped:={stamped[others[0]]} takes it)'
                     if len(others) == 1 and others[0] in stamped else '')
-            self.sim.get_logger().warning(
+            self.logger.warning(
                 f'{self.label}A publisher on {self.cmd_topic} sends {", ".join(others)}, but this '
                 f'simulator takes {ours}{hint}: its commands never arrive')
         elif not others:
@@ -237,7 +245,7 @@ class Robot:
         count = self.cmd_publishers = info.current_count
         if count > 1 and not self._warned_publishers:
             self._warned_publishers = True
-            self.sim.get_logger().warning(
+            self.logger.warning(
                 f'{count} nodes publish on {self.cmd_topic}: their commands interleave and the '
                 'latest one wins')
         elif count <= 1:
@@ -247,7 +255,7 @@ class Robot:
 
     def set_frame(self, parameter, value):
         """Use value for odom_frame_id or base_frame_id (the default frames get a prefix)."""
-        frame = published_frame(self.sim.get_namespace(), self.name, parameter, value)
+        frame = published_frame(self._namespace, self.name, parameter, value)
         if parameter == 'odom_frame_id':
             self.odom_frame = frame
             self.path.clear()  # a path is in one frame
@@ -257,7 +265,7 @@ class Robot:
     def record_path(self, stamp, stamp_ns, x, y, qz, qw):
         """Add the pose just published to the driven path; publish the path if anyone looks."""
         self.path.append((stamp, x, y, qz, qw))
-        taps = self.sim.taps
+        taps = self.taps
         if self.path_pub.get_subscription_count() == 0 and not taps.wants_path:
             return  # converting a long path to a message is the costliest thing here
         path = Path()
