@@ -84,7 +84,7 @@ def tick():
 
 
 try:
-    if sys.argv[1:] == ['loop']:
+    if sys.argv[1:2] == ['loop']:  # run.start appends --ros-args
         due = time.monotonic()
         while rclpy.ok():
             due += 0.02
