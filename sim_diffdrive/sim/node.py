@@ -318,6 +318,8 @@ class UnicycleSim(Node):
         """Publish every robot's odometry (the world's, by default), /tf, the world's topics."""
         world = self.world
         stamp_ns, x, y, qz, qw, linear, angular = odometry or world.odometry()
+        if world.events:  # said before the odometry that shows them goes out
+            self._log_events()
         sec, nanosec = divmod(stamp_ns, _NS)
         each = world.one_by_one  # floats, written robot by robot; else arrays
         layout = self._odometry
@@ -337,8 +339,6 @@ class UnicycleSim(Node):
                 taps.write(self._tf.publisher.topic_name, data, stamp_ns)
         if self.surroundings:
             self.surroundings.publish(stamp_ns, world, taps)
-        if world.events:
-            self._log_events()
         if taps:
             taps.step(stamp_ns, world)
         if self._odom_count % self._path_every == 0:
