@@ -41,6 +41,7 @@ from sim_diffdrive.kinematics import arcs
 from sim_diffdrive.kinematics import integrate
 from sim_diffdrive.kinematics import integrate_all
 from sim_diffdrive.kinematics import limit_command
+from sim_diffdrive.kinematics import normalize_angles
 from sim_diffdrive.world.contact import overlaps_robot
 from sim_diffdrive.world.tracks import earliest_touch
 from sim_diffdrive.world.tracks import Track
@@ -107,8 +108,10 @@ class World:
         # that one contact is one Event however long the robot pushes.
         self.touching = [None] * n
         self.events = []
-        # While a step of solid robots runs: per robot its pose at the start and its arcs.
+        # While a step of solid robots runs: per robot that moves, its pose where it began to
+        # move and its arcs, timed from _begin_ns (see _collide).
         self._drives = None
+        self._begin_ns = 0
         if walls is not None:
             for i in range(n):
                 self._check_place(i, *self._to_map(i, self.x[i], self.y[i], self.yaw[i]))
@@ -138,7 +141,7 @@ class World:
         """Return arrays (x, y, yaw) of every robot in the map frame."""
         c, s = np.cos(self.map_yaw), np.sin(self.map_yaw)
         return (self.map_x + c * self.x - s * self.y, self.map_y + s * self.x + c * self.y,
-                np.array([normalize_angle(a) for a in (self.yaw + self.map_yaw).tolist()]))
+                normalize_angles(self.yaw + self.map_yaw))
 
     def begin(self, now_ns):
         """Start every robot's time at now_ns (a simulator that owns time, at its start)."""

@@ -403,11 +403,8 @@ class _Frames:
         self.stamps[i] = stamp_ns
         for name in self.FIELDS:
             getattr(self, name)[i] = getattr(fleet, name)
-        if self.in_map:  # as world.map_poses(), without turning yaw back into (-pi, pi]
-            c, s = np.cos(fleet.map_yaw), np.sin(fleet.map_yaw)
-            self.x[i] = fleet.map_x + c * fleet.x - s * fleet.y
-            self.y[i] = fleet.map_y + s * fleet.x + c * fleet.y
-            self.yaw[i] = fleet.yaw + fleet.map_yaw
+        if self.in_map:
+            self.x[i], self.y[i], self.yaw[i] = fleet.map_poses()
         self.steps = i + 1
 
     def take(self):
