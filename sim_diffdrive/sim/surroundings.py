@@ -106,8 +106,6 @@ class Surroundings:
         self.scanner = Scanner(grid, beams=p.scan_beams, range_min=p.scan_range_min,
                                range_max=p.scan_range_max, noise_std=p.scan_noise_std,
                                seed=p.seed, radius=p.robot_radius)
-        self._names = names
-        self._namespace = node.get_namespace()
         prefixes = [f'{name}/' if name else '' for name in names]
         self.scan_pubs = [node.create_publisher(LaserScan, prefix + 'scan', SCAN_QOS)
                           for prefix in prefixes]
@@ -116,7 +114,7 @@ class Surroundings:
         # The time between two scans [s], for LaserScan.scan_time.
         self._scan_time = self._scan_every / p.rate_hz
         self._steps = 0
-        scan_frame = resolve_frame(self._namespace, p.scan_frame_id, 'base_scan')
+        scan_frame = resolve_frame(node.get_namespace(), p.scan_frame_id, 'base_scan')
         self._scan_frames = [namespaced_frame(name, scan_frame) for name in names]
         self._map_pub = node.create_publisher(OccupancyGrid, 'map', LATCHED_QOS)
         self._static_pub = node.create_publisher(TFMessage, '/tf_static', LATCHED_QOS)
@@ -142,7 +140,6 @@ class Surroundings:
 
     def set_frames(self, frames):
         """Lay map -> odom out anew for frames, (odom, base) per robot."""
-        self._frames = list(frames)
         self._map_layout = TransformLayout([(self.map_frame, odom) for odom, _ in frames])
 
     def map_message(self, stamp_ns):

@@ -128,7 +128,7 @@ class SimGraph(Lockstep):
         super().__init__(executor_class(context=context))
         self.context = context
         self._probes = {}  # robot name (None: the one on odom) -> listening Probe
-        self._scans = {}  # robot name -> [the latest LaserScan on its scan, or None]
+        self._scans = {}  # robot name -> its _LatestScan
 
     def __enter__(self):
         return self
@@ -207,16 +207,15 @@ class SimGraph(Lockstep):
 
     def scan(self, robot=None):
         """Return the latest LaserScan the graph has seen (robot's, if named), or None."""
-        return self._listen_to_scan(robot)[0]
+        return self._listen_to_scan(robot).msg
 
     def _listen_to_scan(self, robot=None):
         latest = self._scans.get(robot)
         if latest is None:
-            latest = self._scans[robot] = [None]
+            latest = self._scans[robot] = _LatestScan()
             node = Node('sim_graph_scan', namespace=robot, context=self.context,
                         parameter_overrides=_overrides({'use_sim_time': True}))
-            node.create_subscription(LaserScan, 'scan',
-                                     lambda msg: latest.__setitem__(0, msg), 10)
+            node.create_subscription(LaserScan, 'scan', latest.take, 10)
             self.add(node)
         return latest
 
@@ -245,6 +244,16 @@ class SimGraph(Lockstep):
         self._scans = {}
         if self._own_context:
             rclpy.try_shutdown(context=self.context)
+
+
+class _LatestScan:
+    """The latest LaserScan a listener took (msg: None until the first)."""
+
+    def __init__(self):
+        self.msg = None
+
+    def take(self, msg):
+        self.msg = msg
 
 
 def _overrides(params):
