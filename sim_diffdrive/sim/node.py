@@ -291,15 +291,19 @@ class UnicycleSim(Node):
 
     def _on_reset(self, request, response):
         self.advance_all(self.now_ns())
+        refused = 0
         for robot, pose in zip(self.robots, self._initial_poses(len(self.robots))):
             try:
                 robot.reset(*pose)
             except PlacementError as error:
+                refused += 1
                 self.get_logger().warning(f'Refusing ~/reset: {error}; the robot stays where '
                                           'it is')
-        self.get_logger().info(
-            'Reset every robot to its initial pose' if self.params.robots
-            else 'Reset to the initial pose')
+        if refused < len(self.robots):
+            self.get_logger().info(
+                ('Reset every robot to its initial pose' if not refused
+                 else f'Reset {len(self.robots) - refused} robot(s) to their initial poses')
+                if self.params.robots else 'Reset to the initial pose')
         self.publish_odom()
         return response
 
