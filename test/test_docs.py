@@ -29,9 +29,9 @@ Fenced blocks in README.md, CONTRIBUTING.md and docs/*.md, by language:
   the scripts and test files named.
 * ``text`` (output) and ``yaml`` are not run.  A block without a language fails.
 
-The README's tables of the simulator's parameters (generated from its Spec table: ``python
-test/test_docs.py`` rewrites it), topics and services, and of the motions' parameters are
-compared with the nodes themselves.
+The simulator's parameter table in docs/parameters.md (generated from its Spec table: ``python
+test/test_docs.py`` rewrites it) and the README's tables of its topics and services and of the
+motions' parameters are compared with the nodes themselves.
 """
 
 import ast
@@ -58,6 +58,7 @@ import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / 'README.md'
+PARAMETER_PAGE = ROOT / 'docs' / 'parameters.md'
 PAGES = [README, ROOT / 'CONTRIBUTING.md', *sorted((ROOT / 'docs').glob('*.md'))]
 LANGUAGES = {'python', 'bash', 'console', 'text', 'yaml'}
 TABLE_START = '<!-- generated from sim_diffdrive.sim.node.PARAMETERS: python test/test_docs.py -->'
@@ -379,14 +380,14 @@ def parameter_table():
     return '\n'.join(rows + [TABLE_END])
 
 
-def readme_with_table(text):
+def page_with_table(text):
     start, end = text.index(TABLE_START), text.index(TABLE_END) + len(TABLE_END)
     return text[:start] + parameter_table() + text[end:]
 
 
-def test_the_readme_parameter_table_is_the_simulators_spec_table():
-    text = README.read_text()
-    assert text == readme_with_table(text), 'out of date: run python test/test_docs.py'
+def test_the_parameter_table_is_the_simulators_spec_table():
+    text = PARAMETER_PAGE.read_text()
+    assert text == page_with_table(text), 'out of date: run python test/test_docs.py'
 
 
 def test_the_readme_lists_the_simulators_topics_and_services(ros_context):
@@ -435,5 +436,6 @@ def test_the_readme_lists_each_motions_parameters_with_their_defaults():
 
 
 if __name__ == '__main__':
-    README.write_text(readme_with_table(README.read_text()))
-    print(f'{README.name}: the parameter table is written from sim_diffdrive.sim.node.PARAMETERS')
+    PARAMETER_PAGE.write_text(page_with_table(PARAMETER_PAGE.read_text()))
+    print(f'docs/{PARAMETER_PAGE.name}: the parameter table is written from '
+          'sim_diffdrive.sim.node.PARAMETERS')
