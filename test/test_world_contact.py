@@ -267,22 +267,6 @@ def test_placements():
     assert edge.overlaps(-R + 1e-6, 0.07) and not edge.overlaps(-R - 1e-6, 0.07)
 
 
-def test_clear_never_calls_a_robot_near_a_wall_clear():
-    walls = Walls(ROOM, R)
-    rng = np.random.default_rng(7)
-    x, y = rng.uniform(-0.3, 1.8, 4000), rng.uniform(-0.3, 1.3, 4000)
-    reach = rng.uniform(0.0, 0.3, 4000)
-    clear = walls.clear(x, y, reach)
-    assert clear.shape == (4000,)
-    assert np.all(_distance(ROOM, x[clear], y[clear]) > reach[clear] + R)
-    assert 0.05 < clear.mean() < 0.95
-    far = _distance(ROOM, x, y) > (reach + R) * math.sqrt(2.0) + RES
-    assert np.all(clear[far])          # not too conservative: the square around the disc
-    assert not Walls(BLOCK, R).clear(LO - R, 1.0, 0.0)      # touching
-    assert Walls(BLOCK, R).clear(LO - R - 1e-6, 1.0, 0.0)
-    assert Walls(BLOCK, R).clear(0.3, 0.3, 0.1)
-
-
 def test_robots_head_on():
     for v1, v2 in ((0.5, 0.5), (1.0, 0.25), (0.3, 0.0)):
         a, b = (0.0, 0.0, 0.0, v1, 0.0), (1.0, 0.0, math.pi, v2, 0.0)

@@ -129,8 +129,8 @@ class Walls:
     """
     What contacts of discs of one radius with one map's solid cells need, computed once.
 
-    contact() is the earliest touch along an arc, overlaps() refuses a placement, clear() is a
-    vectorized prefilter over many robots.  Cells outside the map are free.  The grid is read
+    contact() is the earliest touch along an arc, overlaps() refuses a placement.  Cells
+    outside the map are free.  The grid is read
     once: a changed map needs a new Walls.
     """
 
@@ -148,7 +148,7 @@ class Walls:
         # corners (bottom-left, bottom-right, top-left, top-right).
         bits = [left, right, down, up, left & down, right & down, left & up, right & up]
         self._bits = sum(mask.astype(np.uint8) << n for n, mask in enumerate(bits))
-        self._edge_sat, self._solid_sat = _sat(self._bits > 0), _sat(solid)
+        self._edge_sat = _sat(self._bits > 0)
 
     def _window(self, x0, x1, y0, y1):
         """Return the cell ranges [i0, i1) x [j0, j1) meeting a box (grid axes), maybe empty."""
@@ -295,22 +295,6 @@ class Walls:
         dx = np.maximum(np.maximum((cj + j0) * res - gx, gx - (cj + j0 + 1) * res), 0.0)
         dy = np.maximum(np.maximum((ci + i0) * res - gy, gy - (ci + i0 + 1) * res), 0.0)
         return bool(np.any(np.hypot(dx, dy) < r - TOUCH))
-
-    def clear(self, x, y, reach):
-        """
-        Return a bool array, True where no solid cell lies within reach + radius of (x, y).
-
-        x, y (map frame) and reach broadcast.  Conservative: it looks in the square about a disc.
-        """
-        gx, gy = self.grid.to_grid(np.asarray(x, dtype=float), np.asarray(y, dtype=float))
-        grow = np.asarray(reach, dtype=float) + (self.radius + TOUCH)
-        ok = np.isfinite(gx) & np.isfinite(gy) & np.isfinite(grow)
-        gx, gy, grow = (np.where(ok, a, 0.0) for a in (gx, gy, grow))
-        (i0, i1), (j0, j1) = [[np.clip(np.floor((c + k * grow) / self._res) + (k > 0), 0, n)
-                               .astype(np.intp) for k in (-1, 1)]
-                              for c, n in zip((gy, gx), self._solid.shape)]
-        sat = self._solid_sat
-        return ok & (sat[i1, j1] - sat[i0, j1] - sat[i1, j0] + sat[i0, j0] == 0)
 
 
 def robot_contact(radius, a, b, dt):
