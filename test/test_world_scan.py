@@ -16,12 +16,12 @@
 
 import math
 
+from benchmark.scan import cast_per_ray
 import numpy as np
 import pytest
 from sim_diffdrive.world.grid import GridMap
 from sim_diffdrive.world.scan import beam_angles
 from sim_diffdrive.world.scan import cast
-from sim_diffdrive.world.scan import cast_per_ray
 from sim_diffdrive.world.scan import Scanner
 
 EXACT = 1e-9  # metres
@@ -319,5 +319,7 @@ def test_64_robots_by_360_beams():
     # To the right (-y): the robot below, or the bottom wall's face y = 0.05 for the first row.
     np.testing.assert_allclose(right[row > 0], 0.4 - radius, rtol=0, atol=EXACT)
     np.testing.assert_allclose(right[row == 0], 0.5 - 0.05, rtol=0, atol=EXACT)
+    # The Scanner (its grid kept padded, the discs, range_min) gives the same, as float32.
     scans = Scanner(grid, radius=radius).scan(x, y, yaw)
-    assert scans.shape == (64, 360) and scans.dtype == np.float32
+    expected = np.where(ranges < 0.12, -math.inf, ranges).astype(np.float32)
+    assert np.array_equal(scans, expected)

@@ -17,7 +17,7 @@ The simulated laser scan: every beam of every robot cast at once, exactly (no RO
 
 cast() finds where each beam first touches a solid cell of a GridMap (the crossing of the cell's
 boundary, not a cell centre) or another robot's disc; Scanner adds seeded noise and REP 117's
--inf/+inf.  cast_per_ray() is nav2_loopback_sim's per-ray Python loop, kept for the benchmark.
+-inf/+inf.  (nav2_loopback_sim's per-ray Python loop, for comparison: tools/benchmark/scan.py.)
 """
 
 import math
@@ -42,7 +42,12 @@ def beam_angles(beams):
     return -math.pi + np.arange(beams) * (2.0 * math.pi / beams)
 
 
-def cast(grid, x, y, yaw, angles, range_max, radius=0.0, discs=True):
+def pad_solid(grid):
+    """Return grid.solid with a free border, flat: cast()'s indices are clipped onto it."""
+    return np.pad(grid.solid, 1).ravel()
+
+
+def cast(grid, x, y, yaw, angles, range_max, radius=0.0, discs=True, padded=None):
     """
     Return the range [m] of every beam of every robot: float64 of shape (robots, beams).
 
@@ -52,7 +57,8 @@ def cast(grid, x, y, yaw, angles, range_max, radius=0.0, discs=True):
     at a corner or along a face counts) or the disc of radius radius of another robot (exact
     ray/circle intersection; a robot's own disc is never seen; with radius > 0 and discs only).
     A scanner inside a solid cell or another robot's disc sees 0.0 on every beam.  No return
-    within range_max is +inf (REP 117).  Outside the map is free.  grid None: no map.
+    within range_max is +inf (REP 117).  Outside the map is free.  grid None: no map.  padded:
+    pad_solid(grid), when the caller keeps it (a Scanner does).
     """
     x, y, yaw = (np.atleast_1d(np.asarray(v, dtype=np.float64)) for v in (x, y, yaw))
     angles = np.atleast_1d(np.asarray(angles, dtype=np.float64))
@@ -63,7 +69,8 @@ def cast(grid, x, y, yaw, angles, range_max, radius=0.0, discs=True):
         gx, gy = grid.to_grid(x, y)
         gx, gy = np.repeat(gx, angles.size), np.repeat(gy, angles.size)
         theta = ((yaw[:, np.newaxis] + angles) - grid.origin[2]).ravel()
-        padded = np.pad(grid.solid, 1).ravel()  # a free border: indices are clipped onto it
+        if padded is None:
+            padded = pad_solid(grid)
         crossings = math.ceil(range_max / grid.resolution) + 2
         cells = ranges.reshape(-1)
         size = BATCH * min(RAYS, cells.size)
@@ -223,6 +230,7 @@ class Scanner:
         self.range_min, self.range_max = float(range_min), float(range_max)
         self.noise_std, self.radius = float(noise_std), float(radius)
         self._rng = np.random.default_rng(seed)
+        self._padded = pad_solid(grid) if grid is not None else None
 
     def scan(self, x, y, yaw):
         """
@@ -231,7 +239,8 @@ class Scanner:
         cast(), then N(0, noise_std) added to the finite ranges; below range_min -inf (too
         close), above range_max +inf (no return), as REP 117 says.
         """
-        ranges = cast(self.grid, x, y, yaw, self.angles, self.range_max, self.radius)
+        ranges = cast(self.grid, x, y, yaw, self.angles, self.range_max, self.radius,
+                      padded=self._padded)
         if self.noise_std > 0.0:
             noise = self._rng.normal(0.0, self.noise_std, ranges.shape)
             finite = np.isfinite(ranges)
@@ -239,61 +248,3 @@ class Scanner:
         ranges[ranges < self.range_min] = -np.inf
         ranges[ranges > self.range_max] = np.inf
         return ranges.astype(np.float32)
-
-
-def cast_per_ray(grid, x, y, yaw, angles, range_max, step=None):
-    """
-    Return the ranges as nav2_loopback_sim casts them, one ray at a time in Python (benchmark).
-
-    step None: its findMapRange, Amanatides & Woo's traversal from cell to cell, the range
-    being the distance between the start cell's and the hit cell's indices times the
-    resolution (within sqrt(2) cells of the exact one; the start cell is not looked at); a
-    step [m]: its earlier walk along the ray in steps from its origin (nav2_simple_commander's
-    LineIterator), the range of the first point in a solid cell.  grid.solid is the occupancy
-    (nav2: a value >= 60); no return, out of the map or beyond range_max, is +inf here (nav2:
-    range_max - 0.01).
-    """
-    cells = (grid.solid.ravel().tolist(), grid.resolution, grid.width, grid.height)
-    ranges = np.full((len(x), len(angles)), math.inf)
-    for i in range(len(x)):
-        gx, gy = grid.to_grid(float(x[i]), float(y[i]))
-        for j in range(len(angles)):
-            theta = float(yaw[i]) + float(angles[j]) - grid.origin[2]
-            ranges[i, j] = (_traverse(*cells, gx, gy, theta, range_max) if step is None else
-                            _walk(*cells, gx, gy, theta, range_max, step))
-    return ranges
-
-
-def _traverse(solid, res, width, height, gx, gy, theta, range_max):
-    origin, direction = (gx, gy), (math.cos(theta), math.sin(theta))
-    start = [math.floor(gx / res), math.floor(gy / res)]
-    cell = list(start)
-    step, t_max, t_delta = [0, 0], [math.inf, math.inf], [math.inf, math.inf]
-    for axis in range(2):
-        if direction[axis] != 0.0:
-            step[axis] = 1 if direction[axis] > 0.0 else -1
-            border = (cell[axis] + (step[axis] > 0)) * res
-            t_max[axis] = (border - origin[axis]) / direction[axis]
-            t_delta[axis] = res / abs(direction[axis])
-    while True:
-        axis = 0 if t_max[0] < t_max[1] else 1
-        cell[axis] += step[axis]
-        t_max[axis] += t_delta[axis]
-        if not (0 <= cell[0] < width and 0 <= cell[1] < height):
-            return math.inf
-        distance = math.hypot(cell[0] - start[0], cell[1] - start[1]) * res
-        if distance > range_max:
-            return math.inf
-        if solid[cell[1] * width + cell[0]]:
-            return distance
-
-
-def _walk(solid, res, width, height, gx, gy, theta, range_max, step):
-    dx, dy = math.cos(theta), math.sin(theta)
-    for k in range(int(range_max / step) + 1):
-        col, row = math.floor((gx + k * step * dx) / res), math.floor((gy + k * step * dy) / res)
-        if not (0 <= col < width and 0 <= row < height):
-            return math.inf
-        if solid[row * width + col]:
-            return k * step
-    return math.inf
