@@ -399,11 +399,10 @@ class World:
         tracks = [Track(*drives[i][1], drives[i][2]) if i in drives
                   else Track(float(mx[i]), float(my[i]), float(myaw[i]), [])
                   for i in range(len(self))]
-        reach = 2.0 * self.radius
         moved = set(drives)
         touched = set()  # pairs stopped against each other (their cut tracks end touching)
         while True:
-            first = earliest_touch(tracks, reach, self.radius, touched)
+            first = earliest_touch(tracks, self.radius, touched)
             if first is None:
                 break
             at, i, j = first

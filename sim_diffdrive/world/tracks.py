@@ -55,7 +55,7 @@ class Track:
         return Track(*self.start, kept)
 
 
-def earliest_touch(tracks, reach, radius, touched):
+def earliest_touch(tracks, radius, touched):
     """Return (t [s], i, j) of the first two tracks that touch, or None."""
     moved = np.array([track.length for track in tracks])
     if not moved.any():
@@ -63,21 +63,21 @@ def earliest_touch(tracks, reach, radius, touched):
     x = np.array([track.start[0] for track in tracks])
     y = np.array([track.start[1] for track in tracks])
     apart = np.hypot(x[:, None] - x[None, :], y[:, None] - y[None, :])
-    near = apart - (moved[:, None] + moved[None, :]) <= reach + 1e-9
+    near = apart - (moved[:, None] + moved[None, :]) <= 2.0 * radius + 1e-9
     near &= (moved[:, None] + moved[None, :]) > 0.0
     first = None
     rows, columns = np.nonzero(np.triu(near, 1))
     for i, j in zip(rows.tolist(), columns.tolist()):
         if (i, j) in touched:
             continue
-        at = touch(tracks[i], tracks[j], reach, radius)
+        at = touch(tracks[i], tracks[j], radius)
         if at is not None and (first is None or at < first[0]):
             first = (at, i, j)
     return first
 
 
-def touch(a, b, reach, radius):
-    """Return the first time [s] tracks a and b come reach apart while closing in, or None."""
+def touch(a, b, radius):
+    """Return the first time [s] tracks a and b come two radii apart, closing in, or None."""
     edges = sorted({0.0, *a.bounds(), *b.bounds()})
     for begin, end in zip(edges, edges[1:]):
         if end <= begin:
