@@ -26,7 +26,6 @@ The geometry is ROS-free (sim_diffdrive/world/): the walls the world stops robot
 """
 
 import array
-import math
 
 from geometry_msgs.msg import TransformStamped
 from nav_msgs.msg import OccupancyGrid
@@ -35,6 +34,7 @@ from rclpy.qos import DurabilityPolicy
 from rclpy.qos import QoSProfile
 from rclpy.time import Time
 from sensor_msgs.msg import LaserScan
+from sim_diffdrive.angles import quaternion_from_yaw
 from sim_diffdrive.cdr import TransformLayout
 from sim_diffdrive.parameters import ParameterError
 from sim_diffdrive.parameters import Spec
@@ -153,8 +153,8 @@ class Surroundings:
         msg.info.width, msg.info.height = int(grid.width), int(grid.height)
         ox, oy, oyaw = grid.origin
         msg.info.origin.position.x, msg.info.origin.position.y = float(ox), float(oy)
-        msg.info.origin.orientation.z = math.sin(0.5 * oyaw)
-        msg.info.origin.orientation.w = math.cos(0.5 * oyaw)
+        q = msg.info.origin.orientation
+        q.x, q.y, q.z, q.w = quaternion_from_yaw(oyaw)
         msg.data = array.array('b', grid.data.astype('int8').tobytes())
         return msg
 

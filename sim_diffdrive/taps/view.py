@@ -59,6 +59,7 @@ import time
 import uuid
 
 import numpy as np
+from sim_diffdrive.angles import quaternion_from_yaw
 from sim_diffdrive.taps.view_page import page_url
 from sim_diffdrive.taps.view_page import ViewerPage
 from sim_diffdrive.taps.view_shapes import path_strips
@@ -290,15 +291,14 @@ class BrowserView:
     def _log_static(self, names, grid=None):
         """Log what does not change during the run: axes, colours, names, line styles, map."""
         rr, rec, count = self._rr, self._rec, len(names)
-        colors = robot_colors(count)
+        colors = self._colors
         labels = [name or 'robot' for name in names]
         rec.log('world', rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
         if grid is not None:
             centers, half_sizes = solid_boxes(grid)
-            half = 0.5 * grid.origin[2]
             rec.log('world/map', rr.Boxes3D(
                 centers=centers, half_sizes=half_sizes,
-                quaternions=[(0.0, 0.0, np.sin(half), np.cos(half))], colors=[MAP_RGB],
+                quaternions=[quaternion_from_yaw(grid.origin[2])], colors=[MAP_RGB],
                 fill_mode=rr.components.FillMode.Solid), static=True)
             rec.log('world/scan', rr.Points3D.from_fields(radii=[SCAN_RADIUS]), static=True)
         rec.log('world/robots', rr.Boxes3D.from_fields(
