@@ -272,8 +272,12 @@ class StopBeforeTheWall(Node):
 
     def on_scan(self, scan):
         ahead = scan.ranges[round(-scan.angle_min / scan.angle_increment)]
+        # A scan from before this node was counted can come late on a lossy link; only a
+        # scan of the step the clock is at (or the next, on its way) is answered with a move.
+        stamp_ns = scan.header.stamp.sec * 1_000_000_000 + scan.header.stamp.nanosec
+        current = stamp_ns >= self.get_clock().now().nanoseconds
         cmd = Twist()
-        if self.enabled and ahead > 0.5:
+        if self.enabled and current and ahead > 0.5:
             cmd.linear.x = 0.3
         self.cmd_pub.publish(cmd)
 
