@@ -302,6 +302,7 @@ def test_a_controller_in_another_process_reads_the_scan_in_lockstep_exactly(grap
     lockstep.leave()
     sim.send(signal.SIGINT)
     assert sim.wait(10.0) == 0
+    assert f'in the map {ROOM} (80 x 60 cells of 0.05 m), scans at 10 Hz' in sim.output()
     assert 'Traceback' not in sim.output()
 
 

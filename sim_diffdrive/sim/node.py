@@ -198,7 +198,10 @@ class UnicycleSim(Node):
             f'{where}, odom at {p.rate_hz:g} Hz, cmd_vel timeout {p.cmd_vel_timeout:g} s'
             + (f', publishing /clock at up to {p.real_time_factor:g}x real time'
                + (' in lockstep' if p.lockstep else ' (free clock)')
-               if p.publish_clock else ''))
+               if p.publish_clock else '')
+            + (f'; in the map {p.map_file} ({self.surroundings.grid.width} x '
+               f'{self.surroundings.grid.height} cells of {self.surroundings.grid.resolution:g} '
+               f'm), scans at {p.scan_rate_hz:g} Hz' if self.surroundings else ''))
 
     def _initial_poses(self, count):
         p = self.params
