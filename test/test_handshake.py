@@ -159,26 +159,49 @@ def test_a_non_member_publisher_never_stalls_and_its_surplus_is_forgotten(joined
     assert ledger.waiting_for(owner.now) == [('sim', CMD, 1)]
 
 
-def test_a_joining_member_holds_the_clock_until_it_caught_up():
+def test_a_joining_member_is_counted_once_it_caught_up():
     ledger = StepLedger('sim')
     owner = Owner(ledger)
     for _ in range(10):
         owner.step()  # freewheeling: ten odometry messages before the motion answers
-    # It answers an older step and has heard only the first few messages.
+    # It answers an older step and has heard only the first few messages: not counted yet,
+    # and the step it joined in is not held for it.
     assert ledger.receive(motion(owner.now - 40 * MS, 0, 3, 60 * MS), owner.now) == 'joined'
-    assert ledger.waiting_for(owner.now)
+    assert ledger.waiting_for(owner.now) == []
     assert ledger.synced() == {'sim'}
+    # The next step is held for its answer, not for what it has not heard.
+    owner.step()
+    assert ledger.waiting_for(owner.now) == [('m', None, 0)]
     ledger.receive(motion(owner.now, 0, 9, owner.now - 20 * MS), owner.now)
-    assert ledger.waiting_for(owner.now)
-    ledger.receive(motion(owner.now, 0, 10, owner.now), owner.now)
+    assert ledger.waiting_for(owner.now) == []
+    assert ledger.synced() == {'sim'}
+    owner.step()
+    ledger.receive(motion(owner.now, 0, 12, owner.now), owner.now)
     assert ledger.waiting_for(owner.now) == []
     assert ledger.synced() == {'sim', 'm'}
     # From here on it is counted exactly.
     owner.step()
-    ledger.receive(motion(owner.now, 0, 10, owner.now - 20 * MS), owner.now)
-    assert ledger.waiting_for(owner.now)
-    ledger.receive(motion(owner.now, 0, 11, owner.now), owner.now)
+    ledger.receive(motion(owner.now, 0, 12, owner.now - 20 * MS), owner.now)
+    assert ledger.waiting_for(owner.now) == [('m', ODOM, 0)]
+    ledger.receive(motion(owner.now, 0, 13, owner.now), owner.now)
     assert ledger.waiting_for(owner.now) == []
+
+
+def test_a_message_a_joining_member_never_gets_does_not_hold_the_clock():
+    # The odometry of the step it joined in was written while its subscription was being
+    # matched, and never reaches it: it answers each re-sent /clock with what it has heard.
+    ledger = StepLedger('sim')
+    owner = Owner(ledger)
+    owner.step()
+    owner.step()
+    for _ in range(3):
+        ledger.receive(motion(owner.now, 0, 1, owner.now - 20 * MS), owner.now)
+        assert ledger.waiting_for(owner.now) == []
+    assert ledger.synced() == {'sim'}
+    owner.step()  # the next odometry does reach it, after the one it missed
+    ledger.receive(motion(owner.now, 0, 2, owner.now), owner.now)
+    assert ledger.waiting_for(owner.now) == []
+    assert ledger.synced() == {'sim', 'm'}
 
 
 def test_what_a_member_sent_before_joining_is_not_owed():

@@ -272,9 +272,13 @@ class StepLedger:
         Each reason is (participant, None, 0) for a missing answer, (participant, topic, 0)
         for a stamped topic on which it has not heard the latest message members sent, or
         (participant, topic, n) for n unstamped messages it has not handled.  A joining member
-        holds the clock until it has answered this step and caught up on every stamped topic
-        it hears (DDS delivers each writer's messages in order); it is counted from the first
-        step that is otherwise settled, so what it missed before is known.
+        holds the clock for its answer to each step after the one it joined in, never for a
+        stamped topic: it is counted from the first otherwise settled step at which it has
+        caught up on every stamped topic it hears, so what it missed before is known.  A
+        message written while its subscription was being matched may never reach it (a DDS
+        volatile reader gets what is written after both sides matched), and held for it, the
+        clock would wait lockstep_timeout for a message that no repair brings; the next step's
+        message does come, and DDS delivers each writer's messages in order.
         """
         # Most news during a step is one more answer while others are still missing: say so
         # at once, without the counts (which cost time in proportion to members x topics).
@@ -293,8 +297,9 @@ class StepLedger:
             floor = member.stamp_floor
             behind = [(pid, topic, 0) for topic, stamp in answer.heard_stamp.items()
                       if max(stamp, floor.get(topic, stamp)) < stamps.get(topic, stamp)]
-            reasons.extend(behind)
-            if not member.synced and not behind and answer.step_ns >= now_ns:
+            if member.synced:
+                reasons.extend(behind)
+            elif not behind and answer.step_ns >= now_ns:
                 caught_up.append(member)
         reasons.extend((pid, topic, due) for (pid, topic), due in self.owed().items()
                        if due > 0)
