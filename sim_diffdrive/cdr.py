@@ -40,8 +40,6 @@ _BODY = len(ENCAPSULATION)
 # Encapsulation kinds read here (the second byte; the first is 0): byte order of each.
 _BYTE_ORDER = {0: '>', 1: '<'}
 _LE_STAMP = struct.Struct('<iI')
-_LE_PAIR = struct.Struct('<2d')
-_LE_DOUBLE = struct.Struct('<d')
 _LE_TWIST = struct.Struct('<d32xd')  # linear.x, (linear.y, .z, angular.x, .y), angular.z
 # Odometry after its frames (8-byte aligned): pose (position 3, orientation 4, covariance 36
 # doubles), twist (linear 3, angular 3, covariance 36 doubles).
@@ -137,22 +135,32 @@ def covariance(diagonal):
     return values
 
 
-class OdometryLayout:
+class _Layout:
+    """CDR bytes in a buffer whose stamps and doubles ``_write`` patches in place."""
+
+    def _lay_out(self, buffer, stamps, fields):
+        # stamps: the byte offset of each stamp; fields: the float64 elements of each value,
+        # one row a value, one column a stamp.
+        self._buffer = np.frombuffer(buffer, dtype=np.uint8).copy()
+        self._i32, self._f64 = self._buffer.view('<i4'), self._buffer.view('<f8')
+        self._stamps = np.array(stamps, dtype=np.intp).reshape(-1, 1) // 4 + np.arange(2)
+        self._fields = np.stack(fields)
+
+    def _write(self, sec, nanosec, values):
+        self._i32[self._stamps] = sec, nanosec  # nanosec (< 1e9): the same bytes as uint32
+        self._f64[self._fields] = values
+
+
+class OdometryLayout(_Layout):
     """
     Every robot's nav_msgs/Odometry as CDR bytes in one buffer, patched per step with numpy.
 
     ``frames`` holds (frame_id, child_frame_id) per robot; ``pose_covariance`` and
     ``twist_covariance`` are the 36 values every robot's message carries.  Laid out once: a
-    change of frames or covariances makes a new layout.  ``serialize`` writes the stamp, the
-    poses and the velocities of every robot with a few vectorized writes and returns one
-    ``bytes`` per robot; ``serialize_each`` writes the same robot by robot from floats, for a
-    few robots, where numpy's cost per call would be most of it.  Position z and orientation x,
-    y stay 0, as a unicycle's do, and so do the velocities the unicycle does not have
-    (linear.y, .z, angular.x, .y).
-
-    Each message starts 4 bytes past a multiple of 8 in the buffer, so that its body (after the
-    encapsulation header) is 8-aligned and every double of every message is one element of a
-    float64 view of the buffer.
+    change of frames or covariances makes a new layout.  Position z and orientation x, y stay
+    0, as a unicycle's do, and so do the velocities it does not have (linear.y, .z, angular.x,
+    .y).  Each message starts 4 bytes past a multiple of 8 in the buffer, so that its body is
+    8-aligned and every double of every message is one element of a float64 view.
     """
 
     def __init__(self, frames, pose_covariance, twist_covariance):
@@ -180,54 +188,27 @@ class OdometryLayout:
             poses.append(start + _BODY + pose)
             self._spans.append((start, len(buffer)))
         buffer += bytes(-len(buffer) % 8)
-        self._buffer = np.frombuffer(buffer, dtype=np.uint8).copy()
-        self._sec = np.array(stamps, dtype=np.intp) // 4
         pose = np.array(poses, dtype=np.intp) // 8
-        self._x, self._y = pose + _X, pose + _Y
-        self._qz, self._qw = pose + _QZ, pose + _QW
-        self._linear, self._angular = pose + _LINEAR_X, pose + _ANGULAR_Z
-        self._i32 = self._buffer.view('<i4')
-        self._u32 = self._buffer.view('<u4')
-        self._f64 = self._buffer.view('<f8')
-        # The same fields' byte offsets per robot, for serialize_each.
-        self._offsets = [tuple(map(int, offsets)) for offsets in zip(
-            4 * self._sec, 8 * self._x, 8 * self._qz, 8 * self._linear, 8 * self._angular)]
+        self._lay_out(buffer, stamps,
+                      [pose + i for i in (_X, _Y, _QZ, _QW, _LINEAR_X, _ANGULAR_Z)])
 
     def __len__(self):
         return len(self._spans)
 
     def serialize(self, sec, nanosec, x, y, qz, qw, linear, angular):
-        """Return every robot's message (a list of bytes) for these values, one entry each."""
-        self._i32[self._sec] = sec
-        self._u32[self._sec + 1] = nanosec
-        f64 = self._f64
-        f64[self._x] = x
-        f64[self._y] = y
-        f64[self._qz] = qz
-        f64[self._qw] = qw
-        f64[self._linear] = linear
-        f64[self._angular] = angular
+        """
+        Return every robot's message (a list of bytes) for these values.
+
+        x to angular hold one value per robot: numpy arrays or sequences of floats.
+        """
+        self._write(sec, nanosec, (x, y, qz, qw, linear, angular))
         data = self._buffer.tobytes()
         return [data[start:end] for start, end in self._spans]
 
-    def serialize_each(self, sec, nanosec, x, y, qz, qw, linear, angular):
-        """Return what ``serialize`` returns, written robot by robot from sequences of floats."""
-        buffer = self._buffer
-        for i, (stamp, position, orientation, linear_x, angular_z) in enumerate(self._offsets):
-            _LE_STAMP.pack_into(buffer, stamp, sec, nanosec)
-            _LE_PAIR.pack_into(buffer, position, x[i], y[i])
-            _LE_PAIR.pack_into(buffer, orientation, qz[i], qw[i])
-            _LE_DOUBLE.pack_into(buffer, linear_x, linear[i])
-            _LE_DOUBLE.pack_into(buffer, angular_z, angular[i])
-        data = buffer.tobytes()
-        return [data[start:end] for start, end in self._spans]
 
-
-class TransformLayout:
+class TransformLayout(_Layout):
     """
     The CDR bytes of a tf2_msgs/TFMessage with fixed frames; ``serialize`` fills in the rest.
-
-    (``serialize_each`` does the same from floats, transform by transform, as OdometryLayout's.)
 
     ``frames`` holds (frame_id, child_frame_id) per transform.  Translations have z = 0 and
     rotations turn about z only, as a unicycle's do.  Each transform: stamp (int32 sec, uint32
@@ -239,45 +220,25 @@ class TransformLayout:
         stamps, translations = [], []
         for frame_id, child_frame_id in frames:
             pad(body, 4)
-            stamps.append(len(body))
+            stamps.append(2 * _BODY + len(body))
             body += bytes(8)
             body += cdr_string(frame_id)
             pad(body, 4)
             body += cdr_string(child_frame_id)
             pad(body, 8)
-            translations.append(len(body))
+            translations.append(2 * _BODY + len(body))
             body += bytes(56)
         # Four bytes ahead of the message, so that the body's 8-aligned doubles are aligned
         # in the buffer too and every field is one element of a typed view.
-        self._buffer = np.frombuffer(bytes(_BODY) + ENCAPSULATION + body, dtype=np.uint8).copy()
-        stamp = (2 * _BODY + np.array(stamps, dtype=np.intp)) // 4
-        self._sec, self._nanosec = stamp, stamp + 1
-        xy = (2 * _BODY + np.array(translations, dtype=np.intp)) // 8
-        self._x, self._y = xy, xy + 1
-        self._qz, self._qw = xy + 5, xy + 6  # after translation (3) and rotation x, y
-        self._i32 = self._buffer.view('<i4')
-        self._u32 = self._buffer.view('<u4')
-        self._f64 = self._buffer.view('<f8')
-        # The same fields' byte offsets per transform, for serialize_each.
-        self._offsets = [tuple(map(int, offsets))
-                         for offsets in zip(4 * stamp, 8 * xy, 8 * self._qz)]
+        xy = np.array(translations, dtype=np.intp) // 8
+        # x, y, then rotation z, w: after translation (3) and rotation x, y.
+        self._lay_out(bytes(_BODY) + ENCAPSULATION + body, stamps, [xy, xy + 1, xy + 5, xy + 6])
 
     def serialize(self, sec, nanosec, x, y, qz, qw):
-        """Return the message's bytes for these values (arrays with one entry per transform)."""
-        self._i32[self._sec] = sec
-        self._u32[self._nanosec] = nanosec
-        f64 = self._f64
-        f64[self._x] = x
-        f64[self._y] = y
-        f64[self._qz] = qz
-        f64[self._qw] = qw
-        return self._buffer[_BODY:].tobytes()
+        """
+        Return the message's bytes for these values.
 
-    def serialize_each(self, sec, nanosec, x, y, qz, qw):
-        """Return what ``serialize`` returns, written transform by transform from floats."""
-        buffer = self._buffer
-        for i, (stamp, translation, rotation) in enumerate(self._offsets):
-            _LE_STAMP.pack_into(buffer, stamp, sec, nanosec)
-            _LE_PAIR.pack_into(buffer, translation, x[i], y[i])
-            _LE_PAIR.pack_into(buffer, rotation, qz[i], qw[i])
-        return buffer[_BODY:].tobytes()
+        x to qw hold one value per transform: numpy arrays or sequences of floats.
+        """
+        self._write(sec, nanosec, (x, y, qz, qw))
+        return self._buffer[_BODY:].tobytes()

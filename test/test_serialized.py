@@ -90,8 +90,8 @@ def test_every_robots_odometry_bytes_decode_to_the_message_field_by_field():
         sec, nanosec = divmod(stamp_ns, NS)
         messages = layout.serialize(sec, nanosec, *values)
         assert len(messages) == len(frames)
-        # Robot by robot from floats (a simulator of a few robots): the same bytes.
-        assert layout.serialize_each(sec, nanosec, *(v.tolist() for v in values)) == messages
+        # From floats (a simulator of a few robots): the same bytes.
+        assert layout.serialize(sec, nanosec, *(v.tolist() for v in values)) == messages
         for i, (data, pair) in enumerate(zip(messages, frames)):
             expected = expected_odometry(stamp_ns, pair, covariances,
                                          *(float(v[i]) for v in values))

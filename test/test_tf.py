@@ -59,8 +59,8 @@ def test_the_tf_bytes_written_with_numpy_or_from_floats_are_what_rclpy_serialize
               np.sin(yaw / 2), np.cos(yaw / 2))
     layout = TransformLayout(frames)
     raw = layout.serialize(*values)
-    # Transform by transform from floats (a simulator of a few robots): the same bytes.
-    assert layout.serialize_each(*values[:2], *(v.tolist() for v in values[2:])) == raw
+    # From floats (a simulator of a few robots): the same bytes.
+    assert layout.serialize(*values[:2], *(v.tolist() for v in values[2:])) == raw
     expected = TFMessage()
     for i, (frame, child) in enumerate(frames):
         transform = TransformStamped()

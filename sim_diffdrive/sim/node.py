@@ -328,10 +328,9 @@ class UnicycleSim(Node):
         if world.events:  # said before the odometry that shows them goes out
             self._log_events()
         sec, nanosec = divmod(stamp_ns, _NS)
-        each = world.one_by_one  # floats, written robot by robot; else arrays
+        each = world.one_by_one  # lists of floats; else arrays
         layout = self._odometry
-        odometry = (layout.serialize_each if each else layout.serialize)(
-            sec, nanosec, x, y, qz, qw, linear, angular)
+        odometry = layout.serialize(sec, nanosec, x, y, qz, qw, linear, angular)
         robots = self.robots
         for robot, data in zip(robots, odometry):
             robot.odom_pub.publish(data)
@@ -341,7 +340,7 @@ class UnicycleSim(Node):
                 taps.write(robot.odom_pub.topic_name, data, stamp_ns)
         # /tf only while someone listens: a step costs its messages, and this is one of three.
         if self._tf is not None and (taps or self._tf.publisher.get_subscription_count()):
-            data = self._tf.publish(sec, nanosec, x, y, qz, qw, each)
+            data = self._tf.publish(sec, nanosec, x, y, qz, qw)
             if taps:
                 taps.write(self._tf.publisher.topic_name, data, stamp_ns)
         if self.surroundings:

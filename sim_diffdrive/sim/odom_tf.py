@@ -95,7 +95,7 @@ class OdomTransform:
     as publishing the odometry, so it is serialized here instead (cdr.TransformLayout): the
     CDR bytes are laid out once for ``frames``, (frame_id, child_frame_id) per robot
     (``set_frames()`` again when they change), and each publish writes the stamp and the poses
-    into them (with numpy, or robot by robot for a few robots).
+    into them.
     """
 
     def __init__(self, node, frames):
@@ -106,13 +106,8 @@ class OdomTransform:
         """Lay the bytes out anew for frames, (frame_id, child_frame_id) per robot."""
         self._layout = TransformLayout(list(frames))
 
-    def publish(self, sec, nanosec, x, y, qz, qw, each=False):
-        """
-        Publish every robot's pose (one entry per robot), stamped sec.nanosec.
-
-        Arrays, or with ``each`` lists of floats, written robot by robot (a few robots).
-        """
-        layout = self._layout
-        data = (layout.serialize_each if each else layout.serialize)(sec, nanosec, x, y, qz, qw)
+    def publish(self, sec, nanosec, x, y, qz, qw):
+        """Publish every robot's pose (arrays or lists, one entry per robot) at sec.nanosec."""
+        data = self._layout.serialize(sec, nanosec, x, y, qz, qw)
         self.publisher.publish(data)
         return data
