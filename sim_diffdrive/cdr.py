@@ -15,18 +15,14 @@
 """
 The CDR bytes of the few messages the simulator sends and reads, with numpy and struct (no ROS).
 
-rclpy publishes bytes as a serialized message and hands a ``raw=True`` subscription the bytes
-it received, so the simulator need not turn messages into Python objects and back on its hot
-path: it writes every robot's ``nav_msgs/Odometry`` and the ``/tf`` message into byte layouts
-made once (``OdometryLayout``, ``TransformLayout``; made anew when frames or covariances
-change) and reads ``linear.x``, ``angular.z`` and the stamp of a command where they lie
-(``read_twist``, ``read_twist_stamped``).
+rclpy publishes bytes and hands a ``raw=True`` subscription the bytes it received, so the hot
+path builds no message objects: odometry and /tf are patched into layouts made once per set of
+frames (``OdometryLayout``, ``TransformLayout``), commands are read where their fields lie.
 
-The encoding is XCDR1 as the ROS 2 middlewares write it: a 4-byte encapsulation header
-(``00 01 00 00``: CDR, little endian; ``00 00``: big endian), then the body, in which a 4-byte
-value is aligned to 4 and an 8-byte one to 8, counted from the body's start; a string is a
-uint32 length (with its NUL), its bytes and the NUL.  A message in another encapsulation
-raises UnsupportedEncoding, for the caller to decode it the slow way.
+The encoding is XCDR1: a 4-byte encapsulation header (``00 01 00 00``: CDR, little endian;
+``00 00``: big endian), then the body, each value aligned to its size counted from the body's
+start; a string is a uint32 length (with its NUL), its bytes and the NUL.  Another
+encapsulation raises UnsupportedEncoding, for the caller to decode it the slow way.
 """
 
 import struct
@@ -108,9 +104,8 @@ def read_odometry(data):
     """
     Return (stamp [ns], frame_id, child_frame_id, position, orientation, twist) of Odometry bytes.
 
-    position is (x, y, z), orientation (x, y, z, w), twist (linear.x, angular.z).  Reading these
-    costs a few microseconds; rclpy's typed subscription builds the whole message (two 36-double
-    covariances as numpy arrays) at about 100 us on the development machine.
+    position is (x, y, z), orientation (x, y, z, w), twist (linear.x, angular.z): a small part
+    of what rclpy's typed subscription would build (two 36-double covariances).
     """
     order = _byte_order(data)
     sec, nanosec = struct.unpack_from(order + 'iI', data, _BODY)

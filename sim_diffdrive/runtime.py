@@ -16,19 +16,15 @@
 The one ``main()`` shape every executable of this package uses.
 
 rclpy's default SIGINT handler shuts the context down before Python sees KeyboardInterrupt,
-after which a last zero Twist can no longer be published.  So the context is started without
-rclpy's signal handlers and SIGINT and SIGTERM are handled here: while Python code waits (for
-typed input, say) they raise KeyboardInterrupt; from the moment the executor spins they only
-set a flag, checked between waits of at most 0.1 s, so no callback is cut off halfway, and a
-signal that comes while the run ends (a second Ctrl-C, or one just after a motion finished)
-cuts off neither the final stop nor the cleanup.  The node's ``shutdown_hook`` (the motions'
-final stop) then runs while the context is still valid; should it fail, the error is logged,
-the exit code is 1, and the node is destroyed and rclpy shut down all the same.
+and a last zero Twist could no longer be published.  So SIGINT and SIGTERM are handled here:
+while Python code waits (typed input) they raise KeyboardInterrupt; once the executor spins
+they set a flag, checked between waits of at most 0.1 s, so neither a callback nor the final
+stop and cleanup is cut off.  Each node's ``shutdown_hook`` (the final stop) runs while the
+context is valid; should it fail, it is logged, the exit code is 1 and cleanup goes on.
 
-``make_node()`` may also return several nodes (a list or tuple), which then share the one
-executor: several motions in one process, say, each in its robot's namespace.  The run ends
-when every node that has a ``done`` attribute is done, and on exit every node's hook runs, even
-after another's failed, before any node is destroyed; the executor is shut down in between.
+``make_node()`` may return several nodes (a list or tuple) sharing one executor.  The run ends
+when every node that has a ``done`` attribute is done; on exit every hook runs before any node
+is destroyed.
 """
 
 from contextlib import contextmanager
@@ -51,19 +47,13 @@ EXIT_USAGE = 2
 # Bounds how long a signal waits for Python's handler while the executor sleeps in rcl.
 _SPIN_TIMEOUT = 0.1
 # How long destroying the nodes and shutting rclpy down may take [s] before the process ends
-# anyway, with every thread's stack and exit code 1: deleting its DDS participant, Fast DDS can
-# spin for ever while a discovery callback of a peer's departure is in flight (seen when
-# several nodes exit at once; robustness.md).  Destroying a 1024-robot simulator takes 7 s.
+# anyway, with every thread's stack and exit code 1: Fast DDS can spin for ever deleting its
+# participant while a discovery callback of a peer's departure is in flight.
 CLEANUP_TIMEOUT_S = 30.0
 
 
 class _Interrupts:
-    """
-    SIGINT/SIGTERM handler: KeyboardInterrupt once, before the run spins; a flag otherwise.
-
-    Deferred from the moment the executor first spins, and after a first KeyboardInterrupt, so
-    a second signal cannot cut off the handling of the first.
-    """
+    """SIGINT/SIGTERM: KeyboardInterrupt once, before the run spins; a flag otherwise."""
 
     def __init__(self):
         self.deferred = False
@@ -85,17 +75,14 @@ def destroyed_if_refused(node):
     """
     Destroy node if the block raises (a bad parameter or input refused it), then re-raise.
 
-    A node that make_node() built but never returned is not run()'s to destroy.  Left to the
-    garbage collector, it goes wherever that gets to it: in a process forked later (flake8's
-    workers in a test run crashed on the DDS handles they inherited), or as the process exits.
+    A node make_node() built but never returned is not run()'s to destroy; left to the garbage
+    collector, it could go in a process forked later, on DDS handles it inherited.
     """
     try:
         yield node
     except KeyboardInterrupt:
-        # Ctrl-C or SIGTERM lands wherever the process is: inside an rclpy call it can leave
-        # the node half made (in create_publisher: the publisher listed, its event handlers
-        # not), and rclpy then fails to destroy it.  The interrupt is what happened, and the
-        # process is ending: what is left goes with it.
+        # An interrupt inside an rclpy call can leave the node half made, and rclpy then fails
+        # to destroy it; the process is ending, and what is left goes with it.
         try:
             node.destroy_node()
         except Exception:
@@ -107,12 +94,7 @@ def destroyed_if_refused(node):
 
 
 def spin_until_done(executor, nodes, interrupts):
-    """
-    Spin until every node with a ``done`` attribute is done, or the context or user stops it.
-
-    ``nodes`` is one node or a sequence of them; nodes without ``done`` (a simulator, say)
-    never end the spin by themselves, so with none that has one it runs until interrupted.
-    """
+    """Spin until every node (one or a sequence) with a ``done`` attribute is done, or stopped."""
     waiting = [node for node in _as_list(nodes) if hasattr(node, 'done')]
     interrupts.deferred = True
     while executor.context.ok() and not (waiting and all(n.done for n in waiting)):
@@ -160,11 +142,8 @@ def run(make_node, args=None):
         executor = EventsExecutor()
         for node in nodes:
             executor.add_node(node)
-        # What exists now (the modules, the node and all it holds) lives as long as the
-        # process: the garbage collector leaves it out from here on.  Its collections then walk
-        # only what the run makes, and the process ends without one last walk over, and
-        # freeing of, everything it imported (rclpy, numpy and the message modules are some
-        # 36,000 objects): a start and exit cost 0.33 CPU s instead of 0.38 (performance.md).
+        # What exists now lives as long as the process: the collector need not walk it again,
+        # neither during the run nor at exit (rclpy, numpy and the messages are many objects).
         gc.freeze()
         spin_until_done(executor, nodes, interrupts)
         exit_code = worst_exit_code(nodes)
@@ -186,12 +165,9 @@ def run(make_node, args=None):
             hooks_ok = [_run_shutdown_hook(node, node.get_logger()) for node in nodes]
             if not all(hooks_ok):
                 exit_code = EXIT_FAILED
-            # The executor lets go of the nodes' entities before they are destroyed.  Left to
-            # the garbage collector, it let go of them only as run() returned, after rclpy's
-            # shutdown: once a motion whose simulator had been killed died there (SIGSEGV in
-            # a QoS event handler's __exit__; rclpy issue 1644 is of the same family).
-            # The watchdog is faulthandler's own thread: it needs no GIL, which the spinning
-            # call holds, so no Python code would run.
+            # The executor lets go of the nodes' entities before they are destroyed, not after
+            # rclpy's shutdown, where a QoS event handler can crash (rclpy issue 1644).  The
+            # watchdog is faulthandler's thread: it needs no GIL, which a spinning call holds.
             faulthandler.dump_traceback_later(CLEANUP_TIMEOUT_S, exit=True)
             if executor is not None:
                 _shut_down(executor, logger)

@@ -15,36 +15,25 @@
 """
 The run, live in a browser (view_port): Rerun's web viewer, fed on simulated time.
 
-Nothing to install but the rerun-sdk wheel, which carries the ``rerun`` program and its web
-viewer.  ``BrowserView`` starts that program as a child process listening on 127.0.0.1 only
-(gRPC on view_port + 1 when free, so the address to open stays the same from run to run, and
-the viewer's files on a free port), serves the page on ``view_port`` (view_page.py: the same
-files, confined to this machine, following the next run on the port) and logs to the program
-with the SDK, one recording per run:
+``BrowserView`` starts the rerun-sdk wheel's ``rerun`` program as a child listening on
+127.0.0.1 only (gRPC on view_port + 1 when free, so the address stays the same from run to
+run), serves the page on ``view_port`` (view_page.py) and logs one recording per run:
 
-- ``world/robots`` and ``world/heading``: each robot as a box turned to its yaw and an arrow
-  along its heading, in its odometry frame (with the simulator's map_file: in the map frame),
-  seen from above with x to the right and y up (REP 103, as RViz shows it; Rerun's 2D view
-  would draw y down);
-- ``world/map`` (with map_file): the map's obstacle cells, a box per run of them along a row,
-  logged once (static); ``world/scan``: every robot's newest scan as its hit points in the map
-  frame (finite ranges only), in the robot's colour, at the scan rate, one call for all;
-- ``world/paths``: each robot's path since the last frame, shown with all the earlier pieces
-  (the view keeps that entity's whole history visible), so a frame sends the newest piece,
-  never the whole path; a jump (a reset) is not joined by a line;
-- ``speed/linear`` and ``speed/angular``: achieved and commanded speed of each robot.
+- ``world/robots``, ``world/heading``: each robot as a box and an arrow along its heading,
+  in its odometry frame (with map_file: the map's), seen from above, x right and y up (REP 103);
+- ``world/map`` (with map_file): the obstacle cells, static; ``world/scan``: every robot's
+  newest scan as hit points, in the robot's colour;
+- ``world/paths``: each robot's path, a frame sending only the piece since the last one;
+  a jump (a reset) is not joined by a line;
+- ``speed/linear``, ``speed/angular``: achieved and commanded speed of each robot.
 
-The simulator's thread only copies each step's arrays (a few microseconds); a thread sends
-frames at most 30 times a wall second, each with every step since the last one, so the plots
-and paths have every step while the cost does not grow with real_time_factor.  Every kind of
-shape goes out in one call for all robots (arrays): one entity per robot would cost
-0.5-1 ms per robot-step.
-
-The ``rerun`` program runs with a configuration directory of its own in which analytics are
-disabled (``rerun analytics disable``, Rerun's documented switch), so the user's Rerun
-configuration is neither read nor changed.  It is stopped with the simulator: by close()
-(Ctrl-C and SIGTERM come through it) and, on Linux, by the kernel should the simulator die
-without closing (``setpriv --pdeathsig``, util-linux).
+The simulator's thread only copies each step's arrays; a thread sends frames at most 30 times
+a wall second with every step since the last, so the cost does not grow with
+real_time_factor, and each kind of shape goes out in one call for all robots (one entity per
+robot costs about a millisecond per robot-step).  The program runs with a configuration
+directory of its own with analytics disabled (``rerun analytics disable``), so the user's
+Rerun configuration is neither read nor changed; it stops with close() and, on Linux, with
+the simulator's death (``setpriv --pdeathsig``).
 """
 
 import atexit
@@ -69,9 +58,8 @@ from sim_diffdrive.taps.view_shapes import solid_boxes
 
 DEFAULT_HOST = '127.0.0.1'
 TIMELINE = 'sim_time'
-# At most this many frames per wall second go to the viewer (a screen shows no more); the
-# steps between two frames are kept and logged with the next one, so paths and speed plots
-# have every step and the cost per step stays a few microseconds.
+# At most this many frames per wall second (a screen shows no more); the steps between two
+# frames go with the next one.
 FRAME_PERIOD_S = 1.0 / 30.0
 # The steps one frame can hold: fewer with more robots, so memory stays a few MB.
 _MAX_VALUES_PER_FRAME = 1 << 18
@@ -97,12 +85,7 @@ class BrowserView:
     wants_path = False
 
     def __init__(self, port, node, host=DEFAULT_HOST):
-        """
-        Serve the viewer on host:port and connect the SDK to a freshly started rerun program.
-
-        Raises ImportError without rerun-sdk and OSError when the port is taken or the rerun
-        program does not start.
-        """
+        """Serve the viewer on host:port, fed by a new rerun program (ImportError, OSError)."""
         import rerun as rr
         program = rerun_program()
         self._rr = rr
@@ -130,8 +113,7 @@ class BrowserView:
             self._process = self._start_rerun(program, host, grpc_port, files_port)
             self.url = page_url(self._page.port, self.grpc_url)
             self._rec = rr.RecordingStream('unicycle_sim', recording_id=run)
-            # Simulated time is the one that matters; the wall clock of logging would only
-            # show as a second timeline and a "latency" of up to a frame plus the page's load.
+            # Simulated time only: a wall-clock timeline would only show the frames' latency.
             rr.set_log_time_enabled(False, recording=self._rec)
             self._rec.connect_grpc(self.grpc_url,
                                    default_blueprint=_blueprint(node.world, grid))
@@ -186,12 +168,7 @@ class BrowserView:
     # -- the simulator's side: a few microseconds per step ---------------------------------
 
     def write(self, topic, msg, stamp_ns):
-        """
-        Keep a robot's scan for step() to draw; the rest is drawn by step(), fleet at once.
-
-        The simulator publishes a step's scans before it hands the step over, so the scan is
-        drawn from the pose the step gives.
-        """
+        """Keep a robot's scan for step() to draw from the pose of the step it precedes."""
         row = self._scan_rows.get(topic)
         if row is None or isinstance(msg, bytes):
             return
@@ -238,11 +215,7 @@ class BrowserView:
                 return
 
     def _log(self, frame, scan=None):
-        """
-        Log the poses of the frame's newest step, the path since the last frame, speeds.
-
-        And scan, the newest scan since the last frame (or None), at its own stamp.
-        """
+        """Log the frame's newest poses, its paths and speeds, and scan (or None) at its stamp."""
         if frame is None:
             return
         rr, rec = self._rr, self._rec
@@ -344,11 +317,7 @@ class BrowserView:
 
 
 def _blueprint(fleet, grid=None):
-    """
-    Return the layout: the robots from above, beside their speeds.
-
-    Seen around where the robots start, or with a map (grid) around the map.
-    """
+    """Return the layout: the robots from above (around their start or the map), speeds."""
     import rerun.blueprint as rrb
     if grid is None:
         center = [float(np.mean(fleet.x)), float(np.mean(fleet.y)), 0.0]
@@ -446,8 +415,7 @@ def _grpc_port(host, view_port):
     """Return view_port + 1 when free (the same address to open, run after run), else any."""
     if 0 < view_port < 65535:
         with socket.socket() as probe:
-            # As a server binds (the rerun program too): a past run's closed connections on
-            # the port, waiting out TIME_WAIT, do not keep it.
+            # As the rerun program binds: connections in TIME_WAIT do not keep the port.
             probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
             try:
                 probe.bind((host, view_port + 1))

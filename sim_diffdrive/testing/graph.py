@@ -58,12 +58,10 @@ def isolated_domain_id():
     """
     Return this test run's ROS domain, claimed once for the run and exported; discovery local.
 
-    A run never joins the domain a shell happens to export (a robot, a simulator someone left
-    running) nor another run's: the first call claims a block of DOMAIN_BLOCK domains in 1..100
-    that no other process on this machine holds (claim_domains), and stores its first in
-    SIM_GRAPH_DOMAIN_ID (set that to pin one); later calls and the processes started afterwards
-    reuse it through ROS_DOMAIN_ID, and ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST keeps it on this
-    machine.  The rest of the block is for the run's pytest workers (the test suite's conftest).
+    Never the domain a shell exports nor another run's: the first call claims a block of
+    domains (claim_domains) and stores its first in SIM_GRAPH_DOMAIN_ID (set that to pin one);
+    later calls and child processes reuse it through ROS_DOMAIN_ID.  The rest of the block is
+    for the run's pytest workers.
     """
     domain = os.environ.get(DOMAIN_VARIABLE)
     if domain is None:
@@ -77,10 +75,9 @@ def claim_domains(directory=None):
     """
     Claim a free block of domains for this process's lifetime; return the block's first domain.
 
-    A block is claimed by holding an exclusive lock on its file in directory (by default
-    DOMAIN_LOCKS, or SIM_GRAPH_DOMAIN_LOCKS: the same for every user and session, as domains
-    are the machine's); the lock goes with the process, however it ends.  Blocks are tried in
-    random order; when none can be claimed (25 runs at once), a random block is shared.
+    A block is held by an exclusive lock on its file in directory (DOMAIN_LOCKS, or
+    SIM_GRAPH_DOMAIN_LOCKS: one for every user, as domains are the machine's), which goes
+    with the process however it ends.  When none is free, a random block is shared.
     """
     # Fast DDS maps a domain to UDP ports; 1..100 stays clear of 0 (everyone's default) and of
     # the top of the valid range.
@@ -115,8 +112,7 @@ class SimGraph(Lockstep):
 
     Without a context, the graph makes its own on an isolated domain and shuts it down on
     close(); ``context`` is what to build the nodes under test with.  executor_class may be
-    any callable taking context=; the default is the EventsExecutor the executables spin
-    (a step costs less than half what it does under rclpy's SingleThreadedExecutor).
+    any callable taking context=; the default is the EventsExecutor the executables spin.
     """
 
     def __init__(self, context=None, executor_class=EventsExecutor):
