@@ -15,15 +15,12 @@
 """
 ``motion_fleet``: one process runs one motion per robot, each in its robot's namespace.
 
-``-p robots:=[robot1,robot2]`` puts a motion node in ``/robot1`` and one in ``/robot2`` (after
-the fleet's own namespace, when ``-r __ns:=`` gives it one), so robot1's motion publishes on
-``/robot1/cmd_vel`` and reads ``/robot1/odom``: what a simulator per namespace, or one
-simulator with ``robots``, serves.  ``motions`` names the executable each robot runs (one name
-for all, or one per robot).  The process's parameters reach every motion node, as rclpy
-applies global arguments to every node of the context: ``-p use_sim_time:=true`` puts them all
-on sim time, and a params file can speak to all (``/**:``) or to one
-(``/robot1/odom_out_and_back:``).  All motions share one executor; the process ends when the
-last has finished, with the worst exit code, and Ctrl-C stops every robot.
+``-p robots:=[robot1,robot2]`` puts a motion node in ``/robot1`` and one in ``/robot2`` (under
+the fleet's namespace), publishing ``/robot1/cmd_vel`` and reading ``/robot1/odom``.
+``motions`` names the executable each robot runs (one for all, or one per robot).  The
+process's parameters reach every motion node (rclpy's global arguments): a params file can
+speak to all (``/**:``) or to one (``/robot1/odom_out_and_back:``).  The process ends when the
+last motion has finished, with the worst exit code; Ctrl-C stops every robot.
 
 ``build_fleet`` builds the same motion nodes in any context, for tests and the benchmark.
 """
@@ -121,13 +118,10 @@ def build_fleet(context, robots, motions, namespace='/', participant=None, **ove
     Build one motion node per robot in context, each in its robot's namespace; return them.
 
     On sim time each motion takes part in the lockstep on its own, or through ``participant``
-    (a lockstep Participant of another node) when given: then the process answers once a step.
-
-    ``overrides`` are parameters every motion node gets (``use_sim_time=True``,
-    ``goal_distance=0.3``; a motion ignores those it does not have), on top of the context's
-    global arguments.  A rotate_robot gets its answers from parameters only (nothing is asked
-    on stdin in a fleet).  Raises ParameterError naming the robot when a motion cannot start;
-    the nodes built until then are destroyed.
+    (another node's lockstep Participant): then the process answers once a step.
+    ``overrides`` are parameters every motion gets (one ignores those it does not have); a
+    rotate_robot takes its answers from parameters only.  Raises ParameterError naming the
+    robot when a motion cannot start, after destroying the nodes built until then.
     """
     parameter_overrides = [Parameter(name, value=value) for name, value in overrides.items()]
     nodes = []
@@ -178,10 +172,9 @@ class MotionFleet(Node):
     """
     The fleet: reads ``robots`` and ``motions``; ``build()`` makes the motions.
 
-    It has no ``done`` of its own, so runtime.run waits for the motions alone.  Its
-    ``shutdown_hook`` runs after theirs: it waits once for every robot's final stop to be
-    acknowledged (each motion's own wait, one after another, would cost 0.2 s per robot) and
-    says how each motion ended.
+    It has no ``done``, so runtime.run waits for the motions alone.  Its ``shutdown_hook`` runs
+    after theirs: it waits once for every robot's final stop to be acknowledged (not 0.2 s per
+    robot, one after another) and says how each motion ended.
     """
 
     def __init__(self, **kwargs):

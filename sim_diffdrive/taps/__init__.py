@@ -15,19 +15,13 @@
 """
 Where else the simulator's traffic goes: an MCAP file, Foxglove, a browser (view_port).
 
-A tap has a ``name``, ``wants_path`` (whether the simulator should build the path message for
-it even when nobody subscribes on DDS), ``write(topic, msg, stamp_ns)`` — called with every
-command the simulator hears and every odometry, /tf, /clock and path message it publishes,
-as a message or as its CDR bytes (commands, odometry and /tf: the bytes that crossed DDS,
-of the type msg_definitions.message_class finds) — ``close()``, and optionally
-``step(stamp_ns, world)``, called
-once per odometry publish with the whole world (sim/world.py: numpy arrays ``x``, ``y``,
-``yaw``, ``linear``, ``angular``, ``target_linear``, ``target_angular`` and the list
-``names``), for a tap that draws every robot at once.  Each needs an optional package (mcap,
-foxglove-sdk, rerun-sdk): when it is missing, or a file or port cannot be had, the simulator
-says so once and runs without it.
-A tap that fails while writing (a full disk) is reported once and dropped; the simulation
-goes on.
+A tap has a ``name``, ``wants_path`` (build the path message even with no DDS subscriber),
+``write(topic, msg, stamp_ns)`` for every command heard and every odometry, /tf, /clock and
+path message published (a message, or the CDR bytes that crossed DDS), ``close()``, and
+optionally ``step(stamp_ns, world)`` once per odometry publish with the whole sim/world.py
+World, to draw every robot at once.  Each needs an optional package (mcap, foxglove-sdk,
+rerun-sdk): when it is missing, or a file or port cannot be had, the simulator says so once
+and runs without it; a tap that fails while writing is reported once and dropped.
 """
 
 from sim_diffdrive.parameters import Spec

@@ -15,22 +15,16 @@
 """
 The simulator's run, live in Foxglove: a WebSocket server (foxglove-sdk) fed by the taps.
 
-Every message the simulator hands to its taps (an object or, mostly, its CDR bytes already)
-goes out on its ROS topic as it is on DDS: CDR bytes with the ``ros2msg`` schema rosbag2
-would write (msg_definitions.py; odom, path, cmd_vel, /tf, /clock), so Foxglove decodes and
-shows them as it would a ROS bag.  Two Foxglove messages make the robot visible in the 3D
-panel: ``/foxglove/robot``, a SceneUpdate with a box and an arrow of about the robot's size
-locked to the base frame, and, only when the simulator does not publish /tf (publish_tf
-false), ``/foxglove/odom_transform``, the odometry as a FrameTransforms.
+Every message the taps get goes out on its ROS topic as CDR bytes with the ``ros2msg``
+schema rosbag2 would write (msg_definitions.py), so Foxglove shows them as a ROS bag.  In the
+3D panel, ``/foxglove/robot`` is a SceneUpdate with a box and an arrow locked to the base
+frame, and, when the simulator does not publish /tf, ``/foxglove/odom_transform`` carries the
+odometry as FrameTransforms.
 
-The server listens on 127.0.0.1: Foxglove (desktop, or the web app in a browser) runs on the
-user's machine and connects to ws://localhost:PORT; the server has no authentication, so it
-is not offered to the network.  To watch a simulator on another machine, forward the port
-(``ssh -L 8765:localhost:8765 robot``).
-
-At 50 Hz the cost stays small: a message is serialized only when a client subscribes to its
-topic, the path (thousands of poses) goes out at most twice a wall second and the scene, which
-does not change, once a second and when the base frame is renamed.
+The server has no authentication, so it listens on 127.0.0.1 only; to watch a simulator on
+another machine, forward the port (``ssh -L 8765:localhost:8765 robot``).  A message is
+serialized only when a client subscribes to its topic; the path goes out at most twice a wall
+second, the scene once a second and when the base frame is renamed.
 """
 
 import time

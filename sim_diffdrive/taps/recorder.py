@@ -15,17 +15,11 @@
 """
 The record_file tap: the simulator's traffic as an MCAP file in the ROS 2 encoding.
 
-Messages are CDR, byte for byte what went out on DDS: the simulator's bytes as they are, a
-message object through ``rclpy.serialization.serialize_message``.  Each type's schema is its
-full ``ros2msg`` definition as rosbag2 writes it: the type's .msg text, then for each type it
-uses (depth first, once each) a line of 80 '=', ``MSG: pkg/Type`` and that type's .msg text,
-read from the ament index.  So Foxglove, ``ros2 bag info/play`` and any generic ROS 2 MCAP
-reader open the file without this package.
-
-The file is chunked (zstd) and finished with its summary (schemas, channels, message counts,
-chunk index) by ``close()``, which the simulator calls on every exit path (Ctrl-C, SIGTERM,
-the node destroyed).  A file cut off before that (kill -9) still reads up to its last chunk,
-but without the index that ``ros2 bag`` needs.
+Messages are CDR, byte for byte what went out on DDS; each type's schema is its full
+``ros2msg`` definition as rosbag2 writes it (msg_definitions.py), so Foxglove, ``ros2 bag``
+and any ROS 2 MCAP reader open the file without this package.  The file is chunked (zstd) and
+finished with its summary by ``close()``, which the simulator calls on every exit path; a file
+cut off before that (kill -9) still reads up to its last chunk, without the index.
 """
 
 import contextlib

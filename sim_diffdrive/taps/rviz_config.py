@@ -15,17 +15,12 @@
 """
 RViz for a namespaced robot or a fleet: rviz/unicycle.rviz, rewritten for its frames and topics.
 
-The installed configuration shows one robot in the root namespace (relative topics ``odom``,
-``path``; fixed frame ``odom``).  The simulator prefixes its default frames with its namespace
-and, for each robot of ``robots``, with the robot's name (sim/odom_tf.py, sim/robot.py):
-``robot1/odom`` -> ``robot1/base_footprint``.  ``rviz_config`` writes a copy for a namespace
-(fixed frame and the robot's frame from the namespace, topics absolute) or for a fleet: the
-odometry, path, scan and base-frame displays once per robot, on a fixed frame ``world`` that
-the launch file ties to every robot's odometry frame (identity transforms), so one view shows
-every robot through TF; with the simulator's map, whose frame is already every odometry frame's
-parent, on the fixed frame ``map`` instead (``fixed_frame``).  The map is the simulator's, one
-for every robot: its display reads it in the namespace.  No ROS imports:
-launch/unicycle.launch.py and the tests use it.
+The installed configuration shows one robot in the root namespace (fixed frame ``odom``);
+the simulator prefixes frames with its namespace and each robot's name (``robot1/odom``).
+``rviz_config`` writes a copy for a namespace (frames from it, topics absolute) or for a
+fleet: each robot's displays on a fixed frame ``world`` the launch file ties to every
+odometry frame, or with the simulator's map on ``map`` (``fixed_frame``).  No ROS imports:
+launch/unicycle.launch.py uses it.
 """
 
 import collections

@@ -15,16 +15,12 @@
 """
 The browser view's page: Rerun's web viewer, confined to this machine (no ROS imports).
 
-The ``rerun`` program serves its viewer (index.html, re_viewer.js, re_viewer_bg.wasm) on a
-private port; ``ViewerPage`` serves the same files on the user's ``view_port`` with one
-difference that matters offline and for privacy: a Content-Security-Policy that lets the page
-talk to this machine's viewer and gRPC ports only.  Rerun 0.41's page otherwise asks Google
-for a web font, GitHub for the latest release, app.rerun.io for its examples and sends usage
-analytics to tel.rerun.io (its web build has no switch for that); under the policy the
-browser sends none of those requests, and the viewer, built to run offline, shows the run
-all the same.  The font links are also taken out of index.html, so the page does not even
-try, and a small script goes in that reloads the page when another run serves the port.
-Requests whose Host is not this machine's are refused (DNS rebinding).
+The ``rerun`` program serves its viewer on a private port; ``ViewerPage`` serves the same
+files on ``view_port`` under a Content-Security-Policy that lets the page talk to this
+machine's viewer and gRPC ports only: Rerun's page would otherwise fetch a web font, release
+and example lists, and send usage analytics (its web build has no switch for that).  The font
+links are taken out of index.html, a script reloads the page when another run serves the
+port, and requests whose Host is not this machine's are refused (DNS rebinding).
 """
 
 import functools
