@@ -67,14 +67,10 @@ class CommandLog:
     """
     The commands a node published, to predict its progress since the last odometry.
 
-    Odometry stamped at s reports the pose at s; the commands published since then have moved
-    the robot on.  Adding their integral over [s, now] removes the one-message lag that would
-    otherwise make a closed loop overshoot.  Each command holds from its time until the next.
-
-    Commands are kept by time, not by count (a fast controller sends many between two
-    odometry messages): ``forget_before(s)`` drops those that ended before s, the oldest time
-    still to be asked for, and none is kept longer than horizon_ns behind the newest, so that
-    a log nobody asks stays small.
+    Odometry stamped at s reports the pose at s; adding the integral of the commands since
+    (each holds until the next) removes the lag that would make a closed loop overshoot.
+    Commands are kept by time: ``forget_before(s)`` drops those that ended before s, and none
+    is kept longer than horizon_ns behind the newest.
     """
 
     def __init__(self, horizon_ns=HORIZON_NS):
@@ -99,9 +95,8 @@ class CommandLog:
         Return ((metres, radians), (linear, angular)): the robot's way and speed at now_ns.
 
         From since_ns, when it went at velocity, on the commands; accel (linear, angular) is
-        the robot's acceleration limit (plans.speed_ramp), 0 for a robot that takes each command at
-        once: then the way is the commands' integral and the speed the latest command.  Before
-        the first command logged the robot is taken to stand still.
+        the robot's acceleration limit (plans.speed_ramp; 0: it takes each command at once).
+        Before the first command logged the robot is taken to stand still.
         """
         (linear, angular), (speed, turn_rate) = (0.0, 0.0), velocity
         linear_accel, angular_accel = accel
@@ -121,10 +116,9 @@ def odometry_fault(last, pose, commands, tolerance=JUMP_TOLERANCE, velocity=(0.0
     """
     Return why odometry pose cannot follow odometry last, or '' when it can.
 
-    Time must not go back, and the robot must not have moved further than commanded (the
-    CommandLog commands, from velocity at last, for a robot with acceleration limits accel:
-    CommandLog.predict) between the two stamps, nor turned more or the other way: a
-    restarted simulator, back at its initial pose, often looks like that.
+    Time must not go back, and between the two stamps the robot must not have moved further
+    than commanded (CommandLog.predict from velocity, with acceleration limits accel), nor
+    turned more or the other way, as a restarted simulator back at its initial pose would.
     """
     if pose.stamp_ns < last.stamp_ns:
         return (f'Odometry went back in time from {last.stamp_ns / NS:.3f} s to '
@@ -145,11 +139,9 @@ class Approach:
     """
     Nav2 Spin's speed law toward a goal distance or angle: full speed, then slow down onto it.
 
-    ``speed(remaining, velocity)`` is clamp(sqrt(2 * accel * remaining), min_speed,
-    max_speed), capped so that the last control period ends on the goal (plans.approach_speed:
-    for a robot whose speed ramps at robot_accel, now at velocity towards the goal, the cap
-    leaves it room to stop); None once less than tolerance remains.  A min_speed above
-    max_speed is taken as max_speed.
+    ``speed(remaining, velocity)`` is plans.approach_speed (for a robot whose speed ramps at
+    robot_accel, now at velocity towards the goal), None once less than tolerance remains.
+    A min_speed above max_speed is taken as max_speed.
     """
 
     def __init__(self, max_speed, min_speed, accel, period, tolerance=TOLERANCE,
@@ -174,10 +166,9 @@ class SpinController:
     """
     Turn in place by goal [rad], closed loop on the yaw turned so far (rotate_robot's odom mode).
 
-    ``turned`` is the accumulated wrapped yaw from odometry since the start (so 4 pi is two
-    turns), ``predicted`` the yaw the robot turned since that odometry was measured and
-    ``turn_rate`` its angular speed now (CommandLog.predict); robot_accel is its angular
-    acceleration limit (0: it takes each command at once).
+    ``turned`` is the accumulated yaw from odometry since the start (4 pi is two turns),
+    ``predicted`` and ``turn_rate`` the yaw turned since that odometry and the angular speed
+    now (CommandLog.predict); robot_accel is the robot's angular acceleration limit.
     """
 
     def __init__(self, goal, clockwise, max_speed, min_speed, accel, period,
@@ -209,11 +200,10 @@ class OutAndBack:
     """
     rbx1's odom_out_and_back as a sequence: each leg drives, pauses, turns, pauses.
 
-    A drive step ends when the distance from where it began reaches goal_distance, a turn step
-    when the yaw turned since it began reaches goal_angle (counter-clockwise), both slowing down
-    on their Approach; a pause after pause seconds.  A pause of 0 leaves the pauses out.
-    Progress is odometry plus ``predicted``: (metres, radians) the robot went since it was
-    measured; ``velocity`` is its (linear, angular) speed now (CommandLog.predict).
+    A drive ends at goal_distance from where it began, a turn at goal_angle turned
+    (counter-clockwise), both slowing down on their Approach; a pause after pause seconds (0:
+    no pauses).  Progress is odometry plus ``predicted`` (metres, radians) at ``velocity``
+    (linear, angular) now (CommandLog.predict).
     """
 
     def __init__(self, legs, goal_distance, goal_angle, pause, drive, turn):

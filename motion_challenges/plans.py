@@ -163,11 +163,7 @@ def rotation_plan(angular_speed, angle, clockwise):
 
 
 def circle_plan(linear_speed, angular_speed, half_period, cycles):
-    """
-    Drive an arc at (v, w) for half_period, then retrace it at (-v, -w); repeat.
-
-    cycles > 0 gives that many back-and-forth cycles; cycles == 0 repeats forever.
-    """
+    """Drive an arc at (v, w) for half_period, retrace it at (-v, -w): cycles times (0: ever)."""
     _require_positive('half period', half_period)
     if isinstance(cycles, bool) or not isinstance(cycles, int) or cycles < 0:
         raise ValueError(f'cycles must be a non-negative integer, got {cycles!r}')
@@ -180,11 +176,7 @@ def circle_plan(linear_speed, angular_speed, half_period, cycles):
 
 def out_and_back_plan(goal_distance, linear_speed, goal_angle, angular_speed, legs,
                       pause_duration):
-    """
-    Build rbx1's timed out-and-back: per leg drive, pause, turn counter-clockwise, pause.
-
-    A pause_duration of 0 leaves the pauses out.
-    """
+    """Build rbx1's timed out-and-back: per leg drive, pause, turn, pause (pause 0: none)."""
     _require_positive('goal distance', goal_distance)
     _require_positive('linear speed', linear_speed)
     _require_positive('goal angle', goal_angle)
@@ -225,9 +217,8 @@ def approach_speed(remaining, max_speed, min_speed, accel, period, robot_accel=0
     Return the speed for a closed-loop motion with remaining distance or angle to go.
 
     Nav2 Spin's law clamp(sqrt(2 * accel * remaining), min_speed, max_speed), capped so that
-    the last control period ends on the goal instead of overshooting: at remaining / period
-    for a robot that takes each command at once (robot_accel 0), at stopping_speed() for one
-    whose speed ramps at robot_accel, now at velocity (both along the goal's direction).
+    the last control period ends on the goal: at remaining / period (robot_accel 0), or at
+    stopping_speed() for a robot whose speed ramps at robot_accel, now at velocity.
     """
     if math.isnan(remaining):
         raise ValueError('remaining must be a number, got nan')
@@ -249,8 +240,8 @@ def speed_ramp(velocity, target, accel, dt):
     """
     Return (distance, velocity) after dt of a robot at velocity commanded target [m or rad].
 
-    Its speed ramps towards the command at accel (unicycle_sim's max_*_accel, a controller's
-    acceleration limit) and then holds it; accel 0: it takes the command at once.
+    Its speed ramps towards the command at accel (unicycle_sim's max_*_accel), then holds it;
+    accel 0: it takes the command at once.
     """
     if accel <= 0.0:
         return target * dt, target
@@ -296,10 +287,9 @@ def _stopping_distance(command, velocity, accel, period):
 
 def final_pose(plan, x=0.0, y=0.0, yaw=0.0, t_end=None):
     """
-    Return the pose (x, y, yaw) after following plan from (x, y, yaw) until t_end.
+    Return the pose (x, y, yaw), yaw in (-pi, pi], after following plan from (x, y, yaw).
 
-    t_end defaults to the end of the plan and is required for a repeating plan. The yaw is
-    normalized to (-pi, pi].
+    Until t_end: the plan's end by default, required for a repeating plan.
     """
     if t_end is None:
         if plan.repeat:

@@ -68,11 +68,7 @@ def normalize_angles(angles):
 
 
 def integrate_all(x, y, yaw, linear, angular, dt):
-    """
-    Advance arrays of poses, each holding its (linear, angular) for dt seconds (see integrate).
-
-    dt is a number or an array.  Returns new arrays (x, y, yaw), yaw wrapped to (-pi, pi].
-    """
+    """Return arrays (x, y, yaw): integrate() element by element; dt a number or an array."""
     turn = angular * dt
     half = 0.5 * turn
     with np.errstate(invalid='ignore', divide='ignore'):
@@ -83,12 +79,7 @@ def integrate_all(x, y, yaw, linear, angular, dt):
 
 
 def limit_command(target, current, max_speed, max_accel, dt):
-    """
-    Apply a speed limit and an acceleration limit to one velocity component.
-
-    A limit of 0 means unlimited.  The acceleration limit bounds the change from the velocity
-    currently applied over dt seconds.
-    """
+    """Limit one velocity component: |target| <= max_speed, |change| <= max_accel dt (0: none)."""
     if max_speed > 0.0:
         target = max(-max_speed, min(max_speed, target))
     if max_accel > 0.0 and dt > 0.0:
@@ -102,10 +93,9 @@ def arcs(linear, angular, target_linear, target_angular, max_linear_accel, max_a
     """
     Yield the arcs a robot drives in dt seconds while its velocity ramps towards its target.
 
-    Each arc is (seconds, linear, angular held over them, linear and angular reached at its
-    end).  While the velocity differs from the target: sub-steps of at most ramp_step seconds,
-    each holding the velocity reached at its middle (second-order accurate); then the rest of
-    dt in one arc.
+    Each arc is (seconds, linear, angular held over them, linear and angular at its end): while
+    the velocity differs from the target, sub-steps of at most ramp_step seconds, each holding
+    the velocity at its middle (second-order accurate); then the rest of dt in one arc.
     """
     while dt > 0.0:
         if linear != target_linear or angular != target_angular:
@@ -136,10 +126,9 @@ class UnicycleModel:
     """
     A unicycle driven by (linear, angular) velocity commands, advanced piecewise in time.
 
-    ``advance(dt)`` integrates with the command currently applied; callers bring the pose up
-    to the moment a new command arrives before ``command()`` changes it, so the result does
-    not depend on how often the pose is published.  With an acceleration limit the applied
-    velocity ramps towards the command in sub-steps of at most ``ramp_step`` seconds.
+    ``advance(dt)`` integrates with the command applied, callers bringing the pose up to each
+    new command before ``command()``; with an acceleration limit the velocity ramps (arcs()).
+    World's one-robot reference, for tests and the benchmark's originals.
     """
 
     def __init__(self, x=0.0, y=0.0, yaw=0.0, max_linear_speed=0.0, max_angular_speed=0.0,

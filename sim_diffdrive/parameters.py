@@ -15,15 +15,12 @@
 """
 Declare a node's parameters from one table, refuse bad values, apply live changes.
 
-Each parameter gets a ParameterDescriptor with its description and, for numbers, its range, so
-``ros2 param describe`` tells users what a value means.  Values are then checked here rather
-than left to rclpy, so that ``-p angle_deg:=90`` (an integer) is accepted for a floating-point
-parameter and every refusal names the parameter, its range and the value given.
-
-A parameter is either live (``Spec(..., live=True)``: a runtime set, e.g. ``ros2 param set``,
-is checked by the same ``Spec.check``, stored and handed to the node's ``on_change``) or
-read-only (the default: its descriptor says so and rclpy refuses a runtime set), so no set is
-ever accepted and then silently ignored.
+Each parameter gets a ParameterDescriptor with its description and range, for ``ros2 param
+describe``.  Values are checked here, not by rclpy, so that ``-p angle_deg:=90`` (an integer)
+serves a float parameter and every refusal names the parameter, its range and the value.
+A parameter is live (``Spec(..., live=True)``: a runtime set is checked by ``Spec.check``,
+stored and handed to ``on_change``) or read-only (rclpy refuses a runtime set), so no set is
+accepted and then ignored.
 """
 
 from array import array
@@ -144,7 +141,7 @@ class Spec:
         too_low = self.low is not None and (
             value < self.low or (self.low_open and value == self.low))
         if too_low or (self.high is not None and value > self.high):
-            raise self._error(value, self._range_text())
+            raise self._error(value, 'must be in ' + self._interval())
         return value
 
     @property
@@ -156,9 +153,6 @@ class Spec:
     def _interval(self):
         return f'{"(" if self.low_open else "["}{self.low}, {self.high}]'
 
-    def _range_text(self):
-        return 'must be in ' + self._interval()
-
     def _error(self, value, why):
         if isinstance(value, array):
             value = value.tolist()  # as rclpy hands over arrays from the command line or a set
@@ -169,11 +163,9 @@ def declare(node, specs, on_change=None):
     """
     Declare every Spec on node and return the checked values as attributes.
 
-    Raises ParameterError naming the first parameter whose value is unusable.  Once declared,
-    a live parameter set at runtime is checked by its Spec (refused with the same words as at
-    start), stored converted (an integer for a float becomes the float), written to the
-    returned values and passed to ``on_change(name, value)``, which makes it take effect.
-    rclpy's own use_sim_time is made read-only too (_clock_chosen_at_start).
+    Raises ParameterError naming the first unusable value.  A live parameter set at runtime is
+    checked by its Spec, stored converted, written to the returned values and passed to
+    ``on_change(name, value)``.  rclpy's use_sim_time is made read-only (_clock_chosen_at_start).
     """
     values = SimpleNamespace()
     for spec in specs:
@@ -205,9 +197,8 @@ def _clock_chosen_at_start(node):
     """
     Make rclpy's use_sim_time read-only: these nodes choose their clock once, at start.
 
-    rclpy would switch it at run time, but the simulator picks how it steps and a motion its
-    lockstep and ticks from it: switched mid-run, a motion froze and a simulator's odometry
-    stopped, with the set reported successful.
+    The simulator picks how it steps and a motion its lockstep and ticks from it: switched
+    mid-run, they would stop while the set was reported successful.
     """
     node.set_descriptor('use_sim_time', ParameterDescriptor(
         name='use_sim_time', type=node.describe_parameter('use_sim_time').type,
@@ -224,11 +215,10 @@ class _LiveParameters:
     """
     The rclpy parameter callbacks that check, store and apply a node's live parameters.
 
-    rclpy checks a descriptor's range (in its own words, without open bounds, and not for
-    arrays) before any on-set callback, so the Spec speaks first, in the pre-set callback: a
-    good value goes on converted (an integer for a float parameter becomes the float); a bad
-    one is noted with its refusal by name and replaced by the current value, which passes
-    rclpy's checks, and the on-set callback then refuses the set with the noted words.
+    rclpy checks a descriptor's range (in its own words, without open bounds) before any
+    on-set callback, so the Spec speaks first, in the pre-set callback: a good value goes on
+    converted; a bad one is noted and replaced by the current value, and the on-set callback
+    refuses the set with the noted words.
     """
 
     def __init__(self, node, specs, values, on_change):

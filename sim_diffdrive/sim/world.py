@@ -52,9 +52,10 @@ NO_DEADLINE = 2 ** 63 - 1
 # In World.integrated_ns: not integrated yet.
 NOT_YET = -1
 # Up to this many robots, step_to goes robot by robot on floats: numpy's cost per call
-# outweighs what it saves (a step of one moving robot: 36 us in numpy, 2 robot by robot).
+# outweighs what it saves.
 ONE_BY_ONE = 16
 LIMITS = ('max_linear_speed', 'max_angular_speed', 'max_linear_accel', 'max_angular_accel')
+_VELOCITIES = ('linear', 'angular', 'target_linear', 'target_angular')
 
 # What every robot's odometry carries: the time [ns], and per robot x, y, the quaternion's z and
 # w, linear and angular velocity (lists of floats for a small world, arrays otherwise).
@@ -84,7 +85,7 @@ class World:
         self.x = np.array([float(p[0]) for p in poses])
         self.y = np.array([float(p[1]) for p in poses])
         self.yaw = np.array([normalize_angle(float(p[2])) for p in poses])
-        for name in ('linear', 'angular', 'target_linear', 'target_angular'):
+        for name in _VELOCITIES:
             setattr(self, name, np.zeros(n))
         self.commanded = [(0.0, 0.0)] * n
         self.limits = {name: [float((limits or {}).get(name, 0.0))] * n for name in LIMITS}
@@ -201,9 +202,7 @@ class World:
 
     def _rest(self, i, x, y, yaw):
         self.x[i], self.y[i], self.yaw[i] = x, y, normalize_angle(yaw)
-        for name in ('linear', 'angular', 'target_linear', 'target_angular'):
-            getattr(self, name)[i] = 0.0
-        self.commanded[i] = (0.0, 0.0)
+        self._halt(i)
         self._set_last_command(i, None)
         self.early[i].clear()
         self.has_early[i] = False
@@ -365,12 +364,15 @@ class World:
 
     def _stop(self, i, kind, data):
         """Robot i touched something: at rest, its command zero; the first touch is an Event."""
-        for name in ('linear', 'angular', 'target_linear', 'target_angular'):
-            getattr(self, name)[i] = 0.0
-        self.commanded[i] = (0.0, 0.0)
+        self._halt(i)
         if self.touching[i] != kind:
             self.touching[i] = kind
             self.events.append(Event(kind, i, data))
+
+    def _halt(self, i):
+        for name in _VELOCITIES:
+            getattr(self, name)[i] = 0.0
+        self.commanded[i] = (0.0, 0.0)
 
     def _to_map(self, i, x, y, yaw):
         """Return robot i's pose (x, y, yaw) given in its odometry frame, in the map."""
@@ -387,10 +389,9 @@ class World:
         """
         Stop each pair of robots that touched during the step, at the moment they touched.
 
-        drives: per robot that moved since begin_ns, (its pose where it began to move in the
-        odometry frame and in the map, its arcs (begin [s after begin_ns], seconds, linear,
-        angular)).  The earliest touch of any pair is found
-        along both robots' arcs; both are put back where they were then, at rest, their arcs
+        drives: per robot that moved since begin_ns, (its start pose in the odometry frame and
+        in the map, its arcs (begin [s after begin_ns], seconds, linear, angular)).  The
+        earliest touch of any pair puts both back where they were then, at rest, their arcs
         cut there; then the next earliest, until none is left.
         """
         if not drives:
