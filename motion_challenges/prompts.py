@@ -77,8 +77,7 @@ def parse_positive_number(text, what, max_value):
     """
     Parse a positive, finite number no greater than max_value.
 
-    ``what`` names the value with its unit (e.g. 'angular speed in degrees per second') for
-    the error message. Raise ValueError saying what was wrong and what is accepted.
+    ``what`` names the value and its unit for the ValueError, which says what is accepted.
     """
     stripped = text.strip()
     accepted = _accepted(what, max_value)
@@ -134,30 +133,21 @@ def ask_rotation(read_line, write, angular_speed_deg=None, angle_deg=None, clock
     """
     Ask for the values left as None, in the order speed, angle, clockwise.
 
-    ``read_line()`` returns one line ('' or EOFError at end of input), e.g.
-    ``sys.stdin.readline`` or ``input``; ``write(text)`` shows text without adding a newline,
-    e.g. ``stream_writer(sys.stdout)``. A bad answer is explained and asked again.
-    Values passed in are checked against the same rules (ValueError if they break one).
-    Raise InputEnded if input ends before every value is known.
+    ``read_line()`` returns one line ('' or EOFError at end of input), e.g. ``input``;
+    ``write(text)`` shows text without a newline, e.g. ``stream_writer(sys.stdout)``.  A bad
+    answer is explained and asked again; values passed in are checked by the same rules
+    (ValueError).  Raise InputEnded if input ends before every value is known.
     """
-    speed_what = 'angular speed in degrees per second'
-    angle_what = 'angle in degrees'
-    if angular_speed_deg is None:
-        angular_speed_deg = _ask(
-            read_line, write, SPEED_PROMPT,
-            lambda text: parse_positive_number(text, speed_what, MAX_ANGULAR_SPEED_DEG),
-            'angular speed')
-    else:
-        angular_speed_deg = _check_positive(
-            float(angular_speed_deg), repr(angular_speed_deg), speed_what,
-            MAX_ANGULAR_SPEED_DEG)
-    if angle_deg is None:
-        angle_deg = _ask(
-            read_line, write, ANGLE_PROMPT,
-            lambda text: parse_positive_number(text, angle_what, MAX_ANGLE_DEG),
-            'angle')
-    else:
-        angle_deg = _check_positive(float(angle_deg), repr(angle_deg), angle_what, MAX_ANGLE_DEG)
+    def number(value, prompt, what, max_value, missing):
+        if value is None:
+            return _ask(read_line, write, prompt,
+                        lambda text: parse_positive_number(text, what, max_value), missing)
+        return _check_positive(float(value), repr(value), what, max_value)
+
+    angular_speed_deg = number(angular_speed_deg, SPEED_PROMPT,
+                               'angular speed in degrees per second', MAX_ANGULAR_SPEED_DEG,
+                               'angular speed')
+    angle_deg = number(angle_deg, ANGLE_PROMPT, 'angle in degrees', MAX_ANGLE_DEG, 'angle')
     if clockwise is None:
         clockwise = _ask(read_line, write, CLOCKWISE_PROMPT, parse_yes_no, 'direction (y/n)')
     elif isinstance(clockwise, str):

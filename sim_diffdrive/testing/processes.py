@@ -113,11 +113,10 @@ class Process:
         """
         End the process unless it has exited; a temporary log is read and removed.
 
-        SIGTERM first, so that it leaves DDS cleanly (a ROS node killed outright can leave
-        shared-memory transport state behind that other processes trip over).  Still running
-        after grace seconds, it is asked for its stacks (SIGUSR1: every executable of this
-        package then writes each thread's Python stack to its output, see runtime.run), so
-        its log shows where it hung; SIGKILL follows STACKS_WAIT seconds later.
+        SIGTERM first, so that it leaves DDS cleanly (a node killed outright can leave
+        shared-memory state behind).  Still running after grace seconds, it is asked for its
+        Python stacks (SIGUSR1, see runtime.run), so its log shows where it hung; SIGKILL
+        follows STACKS_WAIT seconds later.
         """
         if self.popen.poll() is None:
             self.popen.terminate()
@@ -142,13 +141,7 @@ class Process:
             self.popen.wait()
 
     def _write_native_stacks(self):
-        """
-        Add every thread's native stack to the log, where gdb is installed.
-
-        A hang inside rclpy or DDS shows as one Python frame above native code (a node's
-        destroy_node, say); which lock it waits for, and who holds it, only the native stacks
-        tell.
-        """
+        """Add every thread's native stack to the log (gdb): where a hang inside rclpy or DDS is."""
         gdb = shutil.which('gdb')
         if gdb is None:
             return
@@ -193,12 +186,7 @@ def stop(process, signum=signal.SIGINT, timeout=5.0):
 
 
 def stop_all(processes, signum=signal.SIGINT, timeout=5.0):
-    """
-    stop() several processes at once; return their outputs.
-
-    Each ROS process takes about 0.2 s to exit after it has shut down (Fast DDS waits 100 ms
-    in its factory's destructor), so the signal goes to every process before any is waited for.
-    """
+    """stop() several processes at once (each signalled before any is waited for); return outputs."""
     running = [process for process in processes if process.poll() is None]
     for process in running:
         process.send(signum)
