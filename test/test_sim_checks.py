@@ -131,13 +131,11 @@ def test_distinct_frames_start(graph, namespace, params, expected):
     assert sim.robots[0].frames == expected
 
 
-@pytest.mark.parametrize('param, named', [
-    ('odom_frame_id:=base_footprint', 'odom_frame_id'),
-    ('odom_frame_id:=/map', 'odom_frame_id'),
-    ('base_frame_id:=base link', 'base_frame_id'),
-])
-def test_a_simulator_process_with_a_bad_frame_exits_2_naming_it(procs, param, named):
-    proc = procs('bad_frame', 'unicycle_sim', '--ros-args', '-p', param)
+def test_a_simulator_process_with_a_bad_frame_exits_2_naming_it(procs):
+    # Every refusal of a frame is tested in-process above: the process shows the path from -p
+    # to exit 2 once, with the value that the command line hands over as one word.
+    named = 'base_frame_id'
+    proc = procs('bad_frame', 'unicycle_sim', '--ros-args', '-p', 'base_frame_id:=base link')
     try:
         code = proc.wait(30.0)
     except subprocess.TimeoutExpired:
