@@ -41,6 +41,7 @@ from motion_challenges.controllers import CommandLog
 from motion_challenges.controllers import odometry_fault
 from motion_challenges.motion_state import MotionState
 from motion_challenges.robot_watch import RobotWatch
+from motion_challenges.robot_watch import WATCHDOG_PERIOD_S
 from motion_challenges.run_plot import write_plot
 from motion_challenges.specs import COMMON_PARAMETERS
 from nav_msgs.msg import Odometry
@@ -115,7 +116,8 @@ class MotionNode(Node):
         # Waiting is timed on the wall clock: on sim time, node timers do not fire until the
         # simulator publishes /clock, and a missing simulator is exactly what to report.
         self._watchdog = self.create_timer(
-            0.5, self.watch.on_watchdog, clock=Clock(clock_type=ClockType.STEADY_TIME))
+            WATCHDOG_PERIOD_S, self.watch.on_watchdog,
+            clock=Clock(clock_type=ClockType.STEADY_TIME))
         # A restarted simulator's clock starts again from zero, and its first odometry may
         # reach us only once its time has passed the last we had: watch the clock itself.
         self._time_jump = self.get_clock().create_jump_callback(

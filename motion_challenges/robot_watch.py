@@ -38,6 +38,8 @@ _NS = 1_000_000_000
 # Odometry stamped this far from a wall-time node's clock, with /clock published, is on
 # simulated time [s]: further than any clock skew between two hosts.
 _CLOCKS_APART_S = 60.0
+# How often the node calls on_watchdog [s, wall time].
+WATCHDOG_PERIOD_S = 0.5
 
 
 class RobotWatch:
@@ -60,6 +62,8 @@ class RobotWatch:
         # On sim time, the clock as the watchdog last saw it, and when it last saw it move.
         self._clock_seen_ns = None
         self._clock_moved_wall = None
+        # When on_watchdog last ran [s, monotonic]; the node starts its timer with this watch.
+        self._watched_wall = time.monotonic()
         # On sim time: odometry not used yet, in stamp order (see on_odom).
         self._early_odoms = []
 
@@ -169,7 +173,8 @@ class RobotWatch:
         return True
 
     def on_watchdog(self):
-        """Look at the robot (called every 0.5 s on the wall clock)."""
+        """Look at the robot (called every WATCHDOG_PERIOD_S on the wall clock)."""
+        self._excuse_own_stall(time.monotonic())
         node = self._node
         if node.needs_odom and node.state == MotionState.RUNNING:
             self._watch_odometry()
@@ -177,6 +182,22 @@ class RobotWatch:
             self._watch_start()
         if node.sim_time and node.state in (MotionState.RUNNING, MotionState.SETTLING):
             self._watch_clock()
+
+    def _excuse_own_stall(self, wall):
+        """
+        Count no silence over wall time this node did not run (its watchdog came late).
+
+        A process starved of the CPU, stopped in a debugger, or a test that paused between
+        the steps of its graph heard nothing because it did not look: what was sent meanwhile
+        waits in its queues, and the watchdog may run before it is handled.
+        """
+        stalled = wall - self._watched_wall - WATCHDOG_PERIOD_S
+        if stalled > 0.0:
+            if self._odom_wall is not None:
+                self._odom_wall = min(self._odom_wall + stalled, wall)
+            if self._clock_moved_wall is not None:
+                self._clock_moved_wall = min(self._clock_moved_wall + stalled, wall)
+        self._watched_wall = wall
 
     def _watch_clock(self):
         # On sim time the ticks come with the clock: a simulator that died mid-motion stops

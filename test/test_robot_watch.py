@@ -1,0 +1,45 @@
+# Copyright 2026 motion_challenges contributors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""A motion that did not run for a while (a debugger, a starved process) blames nobody."""
+
+import math
+import time
+
+from motion_challenges.odom_out_and_back import OdomOutAndBack
+from motion_challenges.timed_out_and_back import TimedOutAndBack
+import pytest
+from sim_diffdrive.harness import angle_error
+from sim_diffdrive.harness import pose_of
+
+
+@pytest.mark.parametrize('node_class', [OdomOutAndBack, TimedOutAndBack])
+def test_a_pause_of_the_motion_s_process_is_not_a_silent_simulator(graph, node_class):
+    # The process does not run for 2 s mid-motion (a debugger, a starved machine), longer
+    # than odom_timeout: its watchdog then runs late, before anything else, and must not take
+    # the silence it did not look at for a simulator that stopped.
+    graph.sim()
+    probe = graph.probe()
+    node = graph.node(node_class, legs=1, goal_distance=0.2, pause=0.1, odom_timeout=1.5)
+    graph.step_until(lambda: probe.odom is not None and probe.odom.twist.twist.linear.x > 0.0,
+                     5.0)
+    graph.spin_until(lambda: node.done, 0.55)  # the watchdog sees simulated time stand still
+    time.sleep(2.0)
+    graph.spin_until(lambda: node.done, 0.1)  # the watchdog, overdue, runs first
+    assert not node.done, node.exit_code
+    graph.step_until(lambda: node.done, 10.0)
+    assert node.exit_code == 0
+    graph.step_for(0.2)
+    x, y, yaw = pose_of(probe.odom)
+    assert math.hypot(x - 0.2, y) < 1e-6 and angle_error(yaw, math.pi) < 1e-6
