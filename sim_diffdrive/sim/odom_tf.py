@@ -90,12 +90,9 @@ class OdomTransform:
     """
     Publish each robot's odometry as the transform frame_id -> child_frame_id on /tf.
 
-    One TFMessage carries every robot's transform (as robot_state_publisher sends a robot's
-    joints together).  With many robots, turning that message into bytes costs rclpy as much
-    as publishing the odometry, so it is serialized here instead (cdr.TransformLayout): the
-    CDR bytes are laid out once for ``frames``, (frame_id, child_frame_id) per robot
-    (``set_frames()`` again when they change), and each publish writes the stamp and the poses
-    into them.
+    One TFMessage carries every robot's transform, its bytes laid out once for ``frames``,
+    (frame_id, child_frame_id) per robot (cdr.TransformLayout; ``set_frames()`` again when
+    they change), as rclpy's serialization of it would cost as much as the odometry.
     """
 
     def __init__(self, node, frames):

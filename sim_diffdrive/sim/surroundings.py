@@ -122,11 +122,7 @@ class Surroundings:
         self._map_layout = None
 
     def start(self, frames, stamp_ns, taps=None):
-        """
-        Publish the map and base -> scan (frames: (odom, base) per robot) at stamp_ns.
-
-        The taps (the node's, see taps/) get both too, so a recording holds the map.
-        """
+        """Publish (and tap) the map and base -> scan (frames: (odom, base) per robot)."""
         map_msg = self.map_message(stamp_ns)
         self._map_pub.publish(map_msg)
         self.set_frames(frames)

@@ -56,8 +56,7 @@ def message_class(node, topic, msg, types):
     """
     Return the class of msg, sent or heard by node on topic: a message, or its CDR bytes.
 
-    The simulator publishes and subscribes bytes where it can; their class is the one of
-    node's publisher or subscription on the topic, cached in the dict types.
+    The class of bytes is that of node's publisher or subscription on topic, cached in types.
     """
     if not isinstance(msg, bytes):
         return type(msg)
@@ -68,11 +67,7 @@ def message_class(node, topic, msg, types):
 
 
 def message_definition(name):
-    """
-    Return the full ros2msg definition of type name ('pkg/msg/Type' or 'pkg/Type').
-
-    Raises LookupError when a .msg file is not in the ament index.
-    """
+    """Return the ros2msg definition of 'pkg/msg/Type' or 'pkg/Type' (LookupError: no .msg)."""
     seen = set()
 
     def with_dependencies(name):

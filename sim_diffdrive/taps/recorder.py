@@ -43,11 +43,9 @@ class McapRecorder:
     """
     A tap (see taps.py) writing every message it is given to an MCAP file.
 
-    log_time and publish_time of each message are ``stamp_ns``, the simulated time the
-    simulator stamped it with, not the wall time it was written at (rosbag2 logs receive time):
-    a run recorded at 50x real time then plays back (``ros2 bag play``, Foxglove) at the pace
-    of simulated time, and lines up with the messages' header stamps.  Without publish_clock
-    the simulator's time is wall time, and so are the log times.
+    log_time and publish_time of each message are ``stamp_ns``, the simulated time it was
+    stamped with (rosbag2 logs receive time): a run recorded at 50x real time plays back at
+    the pace of simulated time, in line with the header stamps.
     """
 
     wants_path = True
@@ -80,11 +78,7 @@ class McapRecorder:
         self._logger.info(f'Recording to {os.path.abspath(self.path)} (MCAP)')
 
     def write(self, topic, msg, stamp_ns):
-        """
-        Append msg on topic at simulated time stamp_ns (registering its channel once).
-
-        msg is a message or its CDR bytes.
-        """
+        """Append msg (a message or its CDR bytes) on topic at simulated time stamp_ns."""
         if self._closed:
             return
         try:

@@ -64,8 +64,7 @@ def rviz_config(template, namespace='', robots=(), fixed_frame=None):
     """
     Return the RViz configuration template (YAML text) rewritten for namespace and robots.
 
-    fixed_frame replaces the fixed frame (``world`` for a fleet, else the robot's odometry
-    frame), e.g. the simulator's map frame.
+    fixed_frame (the map's, say) replaces ``world`` for a fleet, else the odometry frame.
     """
     config = yaml.safe_load(template)
     views = robot_views(namespace, robots)

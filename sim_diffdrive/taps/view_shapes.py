@@ -32,9 +32,8 @@ def path_strips(stamps, xs, ys, linear):
     """
     Return each robot's path through xs, ys (count, points) as strips (count, points, 3).
 
-    A step longer than the robot can have driven in it is a jump (a reset, a new initial
-    pose): the robot's points before it are moved onto the point after it, so no segment
-    joins the jump's two ends.  None with fewer than two points.
+    At a step longer than the robot can have driven (a reset), its points before are moved
+    onto the point after, so no segment joins the jump.  None with fewer than two points.
     """
     if xs.shape[1] < 2:
         return None
@@ -52,9 +51,8 @@ def scan_points(ranges, angles, x, y, yaw):
     """
     Return the hit points of scans, (points (n, 2), owners (n,)): each robot's in one frame.
 
-    ranges is (robots, beams), angles the beams' angles to the heading (beams,), and x, y,
-    yaw (robots,) the scanners' poses in the frame the points are wanted in; beams without a
-    finite range (no return, too near) give no point.  owners is each point's robot.
+    ranges is (robots, beams), angles (beams,) relative to the heading, x, y, yaw (robots,)
+    the scanners' poses in that frame; a beam without a finite range gives no point.
     """
     ranges = np.asarray(ranges, dtype=float)
     owners, beams = np.nonzero(np.isfinite(ranges))
@@ -70,8 +68,7 @@ def solid_boxes(grid):
     """
     Return a map's obstacle cells as boxes, (centers (n, 3), half_sizes (n, 3)), map frame.
 
-    One box per run of obstacle cells along a row, so a wall is a box or a few, not a box per
-    cell; the boxes are turned by the map origin's yaw (each box's rotation).
+    One box per run of obstacle cells along a row, turned by the map origin's yaw.
     """
     solid = np.asarray(grid.solid, dtype=np.int8)
     edges = np.diff(np.pad(solid, ((0, 0), (1, 1))), axis=1)
