@@ -74,7 +74,7 @@ def warnings(output):
     return [line for line in output.splitlines() if '[WARN]' in line]
 
 
-def test_foreign_stale_and_zero_stamps_never_stall_or_drop_anyone(graph):
+def test_foreign_stale_and_zero_stamps_and_leavers_never_stall_or_drop_anyone(graph):
     sim = start('unicycle_sim', 'publish_clock:=true', f'real_time_factor:={FACTOR}',
                 'stamped:=true')
     probe = graph.probe(use_sim_time=False, listen_only=True)
@@ -106,32 +106,19 @@ def test_foreign_stale_and_zero_stamps_never_stall_or_drop_anyone(graph):
         assert code == 0, output
         done = re.search(r'error ([0-9.]+) deg', output)
         assert done and float(done.group(1)) < 1e-9, output
+        # A participant that leaves never stalls the clock: it freewheels again at once, a
+        # simulated second within a few wall seconds, the robot at rest.  (Waiting for the
+        # leaver would be dropping it after lockstep_timeout, with a warning, checked below.)
+        stamp = stamp_s(probe.odom)
+        assert graph.spin_until(lambda: probe.stamp_s > stamp + 1.0, 5.0)
+        assert probe.twist == (0.0, 0.0)
     finally:
         sim_output = stop(sim)
     assert len(stale) > 100
     assert not [line for line in warnings(sim_output) if 'Lockstep' in line], sim_output
     assert 'Refusing cmd_vel stamped' in sim_output  # the foreign commands came
     assert sim_output.count('takes part from') == 2 and 'going on without' not in sim_output
-
-
-def test_a_participant_that_leaves_never_stalls_the_clock(graph):
-    # With a lockstep_timeout of 30 s, waiting for the leaver would be plain to see.
-    sim = start('unicycle_sim', 'publish_clock:=true', f'real_time_factor:={FACTOR}',
-                'lockstep_timeout:=30.0')
-    probe = graph.probe(use_sim_time=False, listen_only=True)
-    try:
-        assert graph.spin_until(lambda: probe.odom is not None, 20.0), sim.describe()
-        code, output = finish(graph, start('rotate_robot', 'use_sim_time:=true', *ROTATE))
-        assert code == 0, output
-        stamp = stamp_s(probe.odom)
-        # Freewheeling again at once: a simulated second passes within a few wall seconds.
-        assert graph.spin_until(lambda: probe.stamp_s > stamp + 1.0, 5.0)
-        yaw = pose_of(probe.odom)[2]
-        assert angle_error(yaw, math.radians(90.0)) < 1e-12, output
-    finally:
-        sim_output = stop(sim)
-    assert 'Lockstep: /rotate_robot left at' in sim_output
-    assert warnings(sim_output) == [], sim_output
+    assert sim_output.count('Lockstep: /rotate_robot left at') == 2, sim_output
 
 
 def test_a_multithreaded_executor_is_refused_by_name(graph):
