@@ -141,7 +141,7 @@ class Process:
             self.popen.wait()
 
     def _write_native_stacks(self):
-        """Add every thread's native stack to the log (gdb): where a hang inside rclpy or DDS is."""
+        """Add every thread's native stack (gdb) to the log: where rclpy or DDS hangs."""
         gdb = shutil.which('gdb')
         if gdb is None:
             return
@@ -186,7 +186,7 @@ def stop(process, signum=signal.SIGINT, timeout=5.0):
 
 
 def stop_all(processes, signum=signal.SIGINT, timeout=5.0):
-    """stop() several processes at once (each signalled before any is waited for); return outputs."""
+    """stop() several processes at once, each signalled before any is waited for; outputs."""
     running = [process for process in processes if process.poll() is None]
     for process in running:
         process.send(signum)
