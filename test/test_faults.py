@@ -25,6 +25,7 @@ import json
 import math
 import os
 from pathlib import Path
+import re
 import subprocess
 import sys
 import time
@@ -131,19 +132,21 @@ def test_bad_parameters_are_refused_by_name_for_every_executable(procs, tmp_path
     assert not problems, '\n\n'.join(problems)
 
 
-def test_simulator_refuses_garbage_commands_and_stale_stamps(graph, procs):
+def test_simulator_refuses_garbage_commands_and_stale_stamps(graph, capfd):
+    # Two simulators on wall time in this process, over DDS as from a process: what is refused
+    # is decided in the subscription's callback, the same in the executable.
     plain_ns, stamped_ns = f'{_PREFIX}_nan', f'{_PREFIX}_stamped'
-    plain = procs('sim_plain', 'unicycle_sim', *ros_args(plain_ns, KEEP_LAST_COMMAND))
-    stamped = procs('sim_stamped', 'unicycle_sim', *ros_args(
-        stamped_ns, KEEP_LAST_COMMAND, 'stamped:=true', 'max_command_age:=0.5'))
+    for namespace, params in ((plain_ns, ()), (stamped_ns, ('stamped:=true',
+                                                            'max_command_age:=0.5'))):
+        graph.add(UnicycleSim(namespace=namespace, context=graph.context,
+                              cli_args=ros_args(namespace, KEEP_LAST_COMMAND, *params)))
     plain_watch = watch(graph, plain_ns)
     stamped_watch = watch(graph, stamped_ns)
     plain_pub = plain_watch.create_publisher(Twist, 'cmd_vel', 10)
     stamped_pub = stamped_watch.create_publisher(TwistStamped, 'cmd_vel', 10)
     assert graph.spin_until(lambda: plain_watch.odom and stamped_watch.odom
                             and plain_pub.get_subscription_count()
-                            and stamped_pub.get_subscription_count(), 20.0), (
-        plain.describe() + stamped.describe())
+                            and stamped_pub.get_subscription_count(), 20.0)
 
     def send_plain(linear, angular):
         plain_pub.publish(command(linear, angular))
@@ -174,13 +177,14 @@ def test_simulator_refuses_garbage_commands_and_stale_stamps(graph, procs):
         later = watcher.after(since + 0.2)
         assert later and all(twist(o) == (0.2, 0.1) for o in later)
         assert all(math.isfinite(v) for o in later for v in pose_of(o))
-    assert 'Refusing cmd_vel with a non-finite or absurd value' in plain.output()
-    assert 'max_command_age' in stamped.output()
+    output = capfd.readouterr().err
+    assert re.search(rf'\[{plain_ns[1:]}\.unicycle_sim\]: Refusing cmd_vel with a non-finite '
+                     'or absurd value', output), output
+    assert re.search(rf'\[{stamped_ns[1:]}\.unicycle_sim\]: .*max_command_age', output), output
     # Still listening: a good command, and a zero stamp (accepted as "now"), take effect.
     send_plain(0.3, -0.2)
     send_stamped(0.3, -0.2, None)
     assert applied(plain_watch, (0.3, -0.2)) and applied(stamped_watch, (0.3, -0.2))
-    assert 'Traceback' not in plain.output() + stamped.output()
 
 
 # -- floods and two controllers ----------------------------------------------------------------
