@@ -33,9 +33,8 @@ from motion_challenges.plans import speed_ramp
 NS = 1_000_000_000
 # A goal is reached once less than this is left to go [m or rad] (about 6e-6 degrees).
 TOLERANCE = 1e-7
-# How long a CommandLog keeps a command after the next one [ns of the node clock], when no
-# odometry says what is still needed: longer than a running motion goes without odometry
-# (odom_timeout stops it first, 1 s of wall time by default).
+# How long a CommandLog keeps a command after the next one [ns of the node clock] when no
+# odometry asks for it: longer than odom_timeout lets a running motion go without odometry.
 HORIZON_NS = 30 * NS
 # Odometry that moves further than commanded by more than this between two messages is
 # taken for a jump (e.g. a restarted simulator) [m or rad, plus half the commanded motion].

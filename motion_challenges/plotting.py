@@ -198,8 +198,7 @@ def plot_run(filename, trajectory, start=None, end=None, goal=None, title='', se
     """
     Write one run to filename as a PNG; raises ImportError without matplotlib.
 
-    With series (a RunSeries, see time_series) the path has the heading and the speeds over
-    time next to it; without, the path alone.
+    With series (a RunSeries, see time_series) the heading and speeds go beside the path.
     """
     try:
         import matplotlib
@@ -209,14 +208,10 @@ def plot_run(filename, trajectory, start=None, end=None, goal=None, title='', se
     matplotlib.use('Agg')
     from matplotlib import pyplot
 
-    if series is None:
-        figure, axes = pyplot.subplots(figsize=(6.4, 6.4))
-    else:
-        figure = pyplot.figure(figsize=(12.8, 6.4))
+    figure = pyplot.figure(figsize=(6.4, 6.4) if series is None else (12.8, 6.4))
     try:
         if series is None:
-            draw_run(axes, trajectory, start, end, goal, title)
-            figure.tight_layout()
+            draw_run(figure.add_subplot(), trajectory, start, end, goal, title)
         else:
             grid = figure.add_gridspec(3, 2, width_ratios=(1.0, 1.15))
             path_axes = figure.add_subplot(grid[:, 0])
@@ -225,7 +220,7 @@ def plot_run(filename, trajectory, start=None, end=None, goal=None, title='', se
             draw_series(heading_axes, figure.add_subplot(grid[1, 1], sharex=heading_axes),
                         figure.add_subplot(grid[2, 1], sharex=heading_axes), series)
             figure.suptitle(title, fontsize='medium', wrap=True)
-            figure.tight_layout()
+        figure.tight_layout()
         figure.savefig(filename, dpi=100)
     finally:
         pyplot.close(figure)

@@ -66,8 +66,7 @@ class McapRecorder:
         try:
             self._writer = Writer(self._file)
             self._writer.start(profile='ros2', library=_LIBRARY)
-            # A disk that cannot take even the header (full, /dev/full) says so now, not a
-            # megabyte of messages later.
+            # A disk that cannot take even the header says so now, not messages later.
             self._file.flush()
         except OSError as error:
             self._abandon()

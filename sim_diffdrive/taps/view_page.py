@@ -38,9 +38,8 @@ CSP = ("default-src 'self'; script-src 'self' 'unsafe-inline' 'wasm-unsafe-eval'
        "base-uri 'none'; frame-ancestors 'none'")
 _FONT_LINK = re.compile(rb'<link\b[^>]*fonts\.(?:googleapis|gstatic)\.com[^>]*>')
 _CHUNK = 1 << 20
-# The page asks the port which run it serves (its id and gRPC address), once a second, and opens
-# the new one when that changed: a simulator started again on the same view_port (make demo
-# starts one per motion) shows at once.
+# The page asks the port which run it serves (id, gRPC address) once a second and opens a new
+# one at once: a simulator started again on the same view_port shows without a reload.
 RUN_PATH = '/run'
 _FOLLOW = (f"<script>setInterval(() => fetch('{RUN_PATH}').then(r => r.text()).then(run => {{"
            " const [id, url] = run.split(' '); if (id && url && id !== 'RUN')"

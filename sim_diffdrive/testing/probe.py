@@ -117,9 +117,8 @@ class Probe(Node):
 
     def __init__(self, name='probe', odom_topic='odom', cmd_topic='cmd_vel', listen_only=False,
                  record_commands=False, **kwargs):
-        # An instrument with no parameters of its own to serve: without the parameter and type
-        # description services (seven of them, each a reader and a writer that every process on
-        # the graph discovers), a probe costs 1.2 ms of CPU to make and destroy instead of 4.8.
+        # No parameters of its own to serve: without the parameter and type description
+        # services (seven, each discovered by every process) a probe is far cheaper to make.
         kwargs.setdefault('start_parameter_services', False)
         overrides = list(kwargs.pop('parameter_overrides', None) or ())
         if not any(p.name == 'start_type_description_service' for p in overrides):
@@ -144,10 +143,8 @@ class Probe(Node):
         """Return the latest odometry, or None."""
         return self.odoms[-1] if self.odoms else None
 
-    # For the conditions a test spins on: those are asked after every message the graph
-    # handles, and a simulator running ahead of real time sends thousands a second.  Reading a
-    # few fields of the latest message's bytes costs a few microseconds; making the message
-    # (odom), about 100.
+    # For the conditions a test spins on, asked after every message the graph handles: a few
+    # fields read from the latest bytes, not the whole message built (odom).
 
     @property
     def twist(self):
