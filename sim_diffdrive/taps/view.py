@@ -225,18 +225,12 @@ class BrowserView:
             times = rr.TimeColumn(TIMELINE, duration=stamps * 1e-9)
         else:
             times = rr.TimeColumn(TIMELINE, timestamp=stamps.astype('datetime64[ns]'))
-        count = len(x)
-        positions = np.zeros((count, 3))
-        positions[:, 0] = x
-        positions[:, 1] = y
-        quaternions = np.zeros((count, 4))
-        quaternions[:, 2] = np.sin(0.5 * yaw)
-        quaternions[:, 3] = np.cos(0.5 * yaw)
+        count, zeros = len(x), np.zeros(len(x))
+        positions = np.column_stack([x, y, zeros])
+        quaternions = np.column_stack([zeros, zeros, np.sin(0.5 * yaw), np.cos(0.5 * yaw)])
         rec.log('world/robots', rr.Boxes3D.from_fields(
             centers=positions, quaternions=quaternions))
-        heading = np.zeros((count, 3))
-        heading[:, 0] = ARROW_LENGTH * np.cos(yaw)
-        heading[:, 1] = ARROW_LENGTH * np.sin(yaw)
+        heading = np.column_stack([ARROW_LENGTH * np.cos(yaw), ARROW_LENGTH * np.sin(yaw), zeros])
         rec.log('world/heading', rr.Arrows3D.from_fields(origins=positions, vectors=heading))
         if frame.strips is not None:
             rec.log('world/paths', rr.LineStrips3D.from_fields(strips=frame.strips))
