@@ -112,16 +112,6 @@ def arcs(linear, angular, target_linear, target_angular, max_linear_accel, max_a
         dt -= step
 
 
-def ramp(x, y, yaw, linear, angular, target_linear, target_angular, max_linear_accel,
-         max_angular_accel, ramp_step, dt):
-    """Advance a pose for dt seconds along arcs(); return the new (x, y, yaw, linear, angular)."""
-    for step, held_linear, held_angular, linear, angular in arcs(
-            linear, angular, target_linear, target_angular, max_linear_accel, max_angular_accel,
-            ramp_step, dt):
-        x, y, yaw = integrate(x, y, yaw, held_linear, held_angular, step)
-    return x, y, yaw, linear, angular
-
-
 class UnicycleModel:
     """
     A unicycle driven by (linear, angular) velocity commands, advanced piecewise in time.
@@ -178,7 +168,8 @@ class UnicycleModel:
         """Move the robot forward in time by dt seconds."""
         if dt <= 0.0:
             return
-        self.x, self.y, self.yaw, self.linear, self.angular = ramp(
-            self.x, self.y, self.yaw, self.linear, self.angular, self.target_linear,
-            self.target_angular, self.max_linear_accel, self.max_angular_accel, self.ramp_step,
-            dt)
+        for step, held_linear, held_angular, self.linear, self.angular in arcs(
+                self.linear, self.angular, self.target_linear, self.target_angular,
+                self.max_linear_accel, self.max_angular_accel, self.ramp_step, dt):
+            self.x, self.y, self.yaw = integrate(self.x, self.y, self.yaw, held_linear,
+                                                 held_angular, step)
