@@ -61,12 +61,18 @@ class Driver(Node):
 def test_stamped_motions_end_exact_against_a_stamped_simulator(graph, node_class):
     graph.sim(stamped=True, initial_yaw=0.5)
     watcher = graph.node(Driver, namespace='/')
-    node = graph.node(node_class, stamped=True)
+    # Short legs and a quick turn: the stamps are what is tested, not the defaults
+    # (test_motions_graph.py runs those).
+    node = graph.node(node_class, stamped=True, goal_distance=0.3, pause=0.1,
+                      angular_speed=2.0)
     graph.step_until(lambda: node.done, 40.0)
     graph.step_for(0.2)
     assert node.exit_code == 0
     x, y, yaw = pose_of(watcher.odoms[-1])
     assert math.hypot(x, y) < 1e-9 and angle_error(yaw, 0.5) < 1e-9
+    # And it went out: back at the start is where a robot that never moved is too.
+    far = max(math.hypot(*pose_of(odom)[:2]) for odom in watcher.odoms)
+    assert far == pytest.approx(0.3, abs=1e-6)
 
 
 def test_a_command_stamped_ahead_of_the_clock_waits_for_its_step(graph):
