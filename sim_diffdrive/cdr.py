@@ -150,12 +150,11 @@ class OdometryLayout(_Layout):
     """
     Every robot's nav_msgs/Odometry as CDR bytes in one buffer, patched per step with numpy.
 
-    ``frames`` holds (frame_id, child_frame_id) per robot; ``pose_covariance`` and
-    ``twist_covariance`` are the 36 values every robot's message carries.  Laid out once: a
-    change of frames or covariances makes a new layout.  Position z and orientation x, y stay
-    0, as a unicycle's do, and so do the velocities it does not have (linear.y, .z, angular.x,
-    .y).  Each message starts 4 bytes past a multiple of 8 in the buffer, so that its body is
-    8-aligned and every double of every message is one element of a float64 view.
+    ``frames`` holds (frame_id, child_frame_id) per robot, ``pose_covariance`` and
+    ``twist_covariance`` the 36 values every message carries (a change makes a new layout).
+    What a unicycle does not have (position z, orientation x, y, linear.y, .z, angular.x, .y)
+    stays 0.  Each message starts 4 bytes past a multiple of 8, so that its body is 8-aligned
+    and every double is one element of a float64 view.
     """
 
     def __init__(self, frames, pose_covariance, twist_covariance):

@@ -15,20 +15,18 @@
 """
 The pure world: every robot's state and the simulated time, stepped in one place (no ROS).
 
-``World`` owns, per robot, the pose and velocities, the command it follows and its limits, the
-time its pose is integrated up to (integer nanoseconds), its cmd_vel deadline, the stamped
-commands it holds for later, and where its odometry frame lies in the map.  Its interface is
-small: ``command``, ``hold``, ``place`` (odometry frame), ``place_in_map``, ``set_limit``,
-``set_timeout``, and ``step_to(t_ns)``, which returns what the odometry carries; what happened
-on the way (a cmd_vel timeout, a contact) waits in ``events`` for the node to log.
+``World`` owns, per robot, the pose, velocities, command and limits, the time its pose is
+integrated up to (integer nanoseconds), its cmd_vel deadline, the stamped commands it holds,
+and where its odometry frame lies in the map: ``command``, ``hold``, ``place``,
+``place_in_map``, ``set_limit``, ``set_timeout``, and ``step_to(t_ns)``, which returns what
+the odometry carries; timeouts and contacts wait in ``events`` for the node to log.
 
-Every robot is advanced by one path, ``_advance``: its early commands at their stamps, its
-deadline, then the arcs of ``kinematics.arcs`` (the acceleration ramp) one by one, each cut
-short where the robot touches a wall (``walls``, world/contact.py).  A fleet larger than
-``ONE_BY_ONE`` with nothing special on the way and no walls moves in one numpy call instead
-(``kinematics.integrate_all``, bit for bit the same).  With walls, robots are solid to each
-other too: a command brings every robot up to its time, so all share one time, and after the
-step the pairs that came within reach are searched along the arcs each drove (``_collide``).
+Every robot is advanced by one path, ``_advance``: early commands at their stamps, the
+deadline, then the arcs of ``kinematics.arcs`` one by one, each cut short where the robot
+touches a wall (world/contact.py).  A fleet larger than ``ONE_BY_ONE`` with nothing special on
+the way and no walls moves in one numpy call (``kinematics.integrate_all``, bit for bit the
+same).  With walls, robots are solid to each other: a command brings every robot up to its
+time, and after the step the pairs that came within reach are searched along their arcs.
 """
 
 import bisect

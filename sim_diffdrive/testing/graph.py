@@ -15,16 +15,13 @@
 """
 Test robot code against the simulator: an in-process graph stepped in lockstep.
 
-``SimGraph`` is the harness the project's tests, ``make demo``, ``make bench`` and
-``make stress`` use, and the one the ``sim_graph`` pytest fixture (pytest_plugin.py) gives a
-user to test their own controller: build nodes with ``graph.context``, start a simulator that
-owns the clock with ``graph.sim(**params)``, ``graph.add(node)``, then ``graph.step_for(seconds)``
-or ``graph.step_until(predicate, sim_timeout)`` and read ``graph.pose()`` (and, with a
-``map_file``, ``graph.scan()``).
-
-Each step advances simulated time by one simulator step and then spins until every message
-sent in the graph has been handled and no node has a timer due, so a controller's answer
-always lands on the step it was meant for, whatever the machine's load.
+``SimGraph`` is the harness of the project's tests, demo and bench, and what the ``sim_graph``
+pytest fixture (pytest_plugin.py) gives a user: build nodes with ``graph.context``, start a
+simulator that owns the clock with ``graph.sim(**params)``, ``graph.add(node)``, then
+``graph.step_for(seconds)`` or ``graph.step_until(predicate, sim_timeout)`` and read
+``graph.pose()`` (with a ``map_file``, ``graph.scan()`` too).  Each step advances simulated
+time by one simulator step, then spins until every message sent has been handled and no
+timer is due, so an answer lands on the step it was meant for, whatever the machine's load.
 """
 
 import fcntl

@@ -130,8 +130,7 @@ class Walls:
     What contacts of discs of one radius with one map's solid cells need, computed once.
 
     contact() is the earliest touch along an arc, overlaps() refuses a placement.  Cells
-    outside the map are free.  The grid is read
-    once: a changed map needs a new Walls.
+    outside the map are free; a changed map needs a new Walls.
     """
 
     def __init__(self, grid, radius):

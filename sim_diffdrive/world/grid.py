@@ -92,10 +92,9 @@ class GridMap:
 
     def to_grid(self, x, y):
         """
-        Return a map-frame point (floats or numpy arrays) in the grid's own axes, in metres.
+        Return a map-frame point (floats or arrays) in the grid's axes [m] from the origin corner.
 
-        The result is relative to the origin corner, rotated by -yaw; with yaw 0 it is exactly
-        (x - origin x, y - origin y).
+        Rotated by -yaw; with yaw 0 it is exactly (x - origin x, y - origin y).
         """
         ox, oy, yaw = self.origin
         dx = x - ox

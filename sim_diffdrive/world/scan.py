@@ -17,7 +17,7 @@ The simulated laser scan: every beam of every robot cast at once, exactly (no RO
 
 cast() finds where each beam first touches a solid cell of a GridMap (the crossing of the cell's
 boundary, not a cell centre) or another robot's disc; Scanner adds seeded noise and REP 117's
--inf/+inf.  (nav2_loopback_sim's per-ray Python loop, for comparison: tools/benchmark/scan.py.)
+-inf/+inf.
 """
 
 import math
@@ -31,11 +31,7 @@ RAYS, BATCH = 16384, 16  # rays cast together, crossings of each axis looked at 
 
 
 def beam_angles(beams):
-    """
-    Return the beams' angles relative to the heading: -pi + k * 2pi/beams, k = 0..beams-1.
-
-    The full turn counter-clockwise from angle_min = -pi, angle_increment = 2pi/beams.
-    """
+    """Return the beams' angles to the heading: -pi + k * 2pi/beams, k = 0..beams-1."""
     beams = int(beams)
     if beams < 1:
         raise ValueError('beams must be at least 1, not %d' % beams)
@@ -236,8 +232,8 @@ class Scanner:
         """
         Return the ranges of every robot's scan: float32 of shape (robots, beams).
 
-        cast(), then N(0, noise_std) added to the finite ranges; below range_min -inf (too
-        close), above range_max +inf (no return), as REP 117 says.
+        cast() plus N(0, noise_std) on finite ranges; -inf below range_min, +inf above
+        range_max (REP 117).
         """
         ranges = cast(self.grid, x, y, yaw, self.angles, self.range_max, self.radius,
                       padded=self._padded)
