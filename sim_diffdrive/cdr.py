@@ -64,6 +64,16 @@ def pad(body, alignment):
     body += bytes(-len(body) % alignment)
 
 
+def _header(body, frame_id, child_frame_id):
+    """Append a zero stamp and the two frames to body, padded for the doubles; return body."""
+    body += bytes(8)
+    body += cdr_string(frame_id)
+    pad(body, 4)
+    body += cdr_string(child_frame_id)
+    pad(body, 8)
+    return body
+
+
 def _byte_order(data):
     order = _BYTE_ORDER.get(data[1]) if len(data) >= _BODY and data[0] == 0 else None
     if order is None:
@@ -167,11 +177,7 @@ class OdometryLayout(_Layout):
         for frame_id, child_frame_id in frames:
             buffer += bytes(-(len(buffer) + _BODY) % 8)
             start = len(buffer)
-            body = bytearray(8)  # the stamp
-            body += cdr_string(frame_id)
-            pad(body, 4)
-            body += cdr_string(child_frame_id)
-            pad(body, 8)
+            body = _header(bytearray(), frame_id, child_frame_id)
             pose = len(body)
             doubles = np.zeros(_ODOMETRY_DOUBLES, dtype='<f8')
             doubles[_POSE_DOUBLES:_LINEAR_X] = covariances[0]
@@ -215,11 +221,7 @@ class TransformLayout(_Layout):
         for frame_id, child_frame_id in frames:
             pad(body, 4)
             stamps.append(2 * _BODY + len(body))
-            body += bytes(8)
-            body += cdr_string(frame_id)
-            pad(body, 4)
-            body += cdr_string(child_frame_id)
-            pad(body, 8)
+            _header(body, frame_id, child_frame_id)
             translations.append(2 * _BODY + len(body))
             body += bytes(56)
         # Four bytes ahead of the message, so that the body's 8-aligned doubles are aligned
