@@ -15,14 +15,11 @@
 """
 The world around the robots on the ROS side: the map, the laser scans, map -> odom.
 
-With ``map_file`` (a map_server YAML) the simulator's robots drive in that map, as in Nav2's
-loopback simulator: the map goes out once on ``map`` (nav_msgs/OccupancyGrid, reliable and
-transient local, so a late subscriber gets it, as map_server's), each robot's
-``sensor_msgs/LaserScan`` on ``<robot>/scan`` at ``scan_rate_hz``, stamped at the step it
-shows, ``map_frame_id`` -> each robot's odometry frame on ``/tf`` with its odometry, and each
-robot's base frame -> ``scan_frame_id`` (the scanner at the robot's centre) on ``/tf_static``.
-The geometry is ROS-free (sim_diffdrive/world/): the walls the world stops robots at
-(contact.py) and the scan (scan.py), cast for every robot at once.
+With ``map_file`` (a map_server YAML) the robots drive in that map, as in Nav2's loopback
+simulator: the map goes out once on ``map`` (transient local, as map_server's), each robot's
+LaserScan on ``<robot>/scan`` at ``scan_rate_hz``, ``map_frame_id`` -> each odometry frame on
+``/tf`` with the odometry, and each base frame -> ``scan_frame_id`` on ``/tf_static``.  The
+geometry is ROS-free (sim_diffdrive/world/).
 """
 
 import array

@@ -56,11 +56,7 @@ class FoxgloveLive:
     wants_path = True
 
     def __init__(self, port, node, host=DEFAULT_HOST):
-        """
-        Start the server on host:port (port 0: any free one, see ``port``).
-
-        Raises ImportError without foxglove-sdk and OSError when the port cannot be had.
-        """
+        """Start the server on host:port (0: any, see ``port``); ImportError, OSError."""
         import foxglove
         from foxglove import channels
         from foxglove import messages

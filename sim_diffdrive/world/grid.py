@@ -223,11 +223,7 @@ def _number(doc, key, where, default=None):
 
 
 def _quanta(img):
-    """
-    Return the image's colour channels and its alpha (or None) as 16-bit quanta.
-
-    channels has shape (height, width, n): 1 for a grey image, 3 for a colour one.
-    """
+    """Return the image's channels (height, width, 1 or 3) and alpha (or None), 16-bit quanta."""
     if img.mode in ('I;16', 'I;16B', 'I;16L', 'I'):
         grey = np.clip(np.asarray(img, dtype=np.int64), 0, MAX_QUANTUM)
         return grey[:, :, np.newaxis].astype(np.float64), None
