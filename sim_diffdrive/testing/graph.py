@@ -213,7 +213,7 @@ class SimGraph(Lockstep):
         return latest
 
     def wait_for_odometry(self, timeout=20.0, process=None):
-        """Spin (wall time) until odometry arrives; return it (RuntimeError naming process)."""
+        """Spin (wall time) until odometry comes; return it, else RuntimeError (process's log)."""
         if not self.spin_until(lambda: self.odometry.odom is not None, timeout):
             log = f':\n{process.describe()}' if process is not None else ''
             raise RuntimeError(f'no odometry within {timeout} s: is a simulator running?{log}')
