@@ -260,10 +260,10 @@ def later_odometry(graph, watchers, seconds=0.2):
     return [w.odom for w in watchers]
 
 
+# Every refusal's wording is tested in process above; the process shows the path to exit 2 for
+# a mistake in the plan and for one in a motion's own parameters.
 @pytest.mark.parametrize('params,words', [
     ((), ["parameter 'robots' must name at least one robot"]),
-    (('robots:=[robot1,robot2]', 'motions:=[rotate_robot,dance]'),
-     ["parameter 'motions' names 'dance'"]),
     (('robots:=[robot1]', 'motions:=[rotate_robot]', 'angle_deg:=90.0'),
      ["robot 'robot1' (rotate_robot)", 'angular_speed_deg, clockwise']),
 ])
