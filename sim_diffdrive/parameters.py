@@ -48,12 +48,11 @@ class Spec:
     """
     One parameter: name, default (its type decides the parameter's type) and meaning.
 
-    A default of None declares the parameter without a value (it is then None unless given at
-    start); ``kind`` names its type.  ``low``/``high`` bound numbers (and every element of a
-    number array); ``low_open`` excludes ``low`` itself (a speed must be > 0).  ``choices``
-    restricts strings.  ``length`` fixes the size of an array; ``items`` is the type of its
-    elements (float, or str for a string array).  ``live`` lets it change while the node runs;
-    otherwise it is read-only after start.
+    A default of None declares it without a value (None unless given); ``kind`` names its
+    type.  ``low``/``high`` bound numbers (and each element of a number array), ``low_open``
+    excludes ``low`` (a speed > 0); ``choices`` restricts strings; ``length`` fixes an array's
+    size, ``items`` its elements' type (float or str).  ``live`` lets it change while the node
+    runs; otherwise it is read-only after start.
     """
 
     name: str

@@ -45,10 +45,8 @@ def robot_views(namespace='', robots=()):
     """
     Return a RobotView per robot (one unnamed for no robots): its frames and topic namespace.
 
-    Frames as unicycle_sim names its default ones in namespace (``/site`` -> ``site/odom``) and
-    for each robot (``robot1/site/odom``); topics the absolute namespace of the robot's
-    ``odom``, ``path``, ``scan`` and ``initialpose`` (``/site/robot1``, or ``''`` at the
-    root).
+    Frames as unicycle_sim names its defaults (``/site`` -> ``site/odom``, ``robot1/site/odom``
+    for a robot); topics the absolute namespace of the robot's (``/site/robot1``, or ``''``).
     """
     prefix = namespace.strip('/')
     views = []
