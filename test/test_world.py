@@ -79,7 +79,9 @@ def world_and_twins(rng, count, limits):
     return world, [UnicycleModel(*pose, **limits) for pose in poses]
 
 
-@pytest.mark.parametrize('count', [ONE_BY_ONE, 64])
+# Robot by robot, and in numpy: any count above ONE_BY_ONE takes the same arrays (64 robots
+# took 3 CPU s of twins ramping in 1 ms sub-steps for what 24 show).
+@pytest.mark.parametrize('count', [ONE_BY_ONE, ONE_BY_ONE + 8])
 @pytest.mark.parametrize('limits', LIMITS)
 def test_a_world_moves_each_robot_as_a_unicycle_model_alone_would(limits, count):
     """Random commands, some robots ramping, in numpy or robot by robot: each as its twin."""
