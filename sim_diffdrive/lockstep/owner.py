@@ -37,11 +37,13 @@ gives itself up.
 
 import time
 
+from rclpy.serialization import deserialize_message
 from sim_diffdrive.lockstep.counter import MessageCounter
 from sim_diffdrive.lockstep.handshake import Answer
 from sim_diffdrive.lockstep.handshake import answer_topic
 from sim_diffdrive.lockstep.handshake import roster_topic
 from sim_diffdrive.lockstep.handshake import StepLedger
+from sim_diffdrive.lockstep.handshake import string_text
 from sim_diffdrive.lockstep.participant import ANSWER_QOS
 from sim_diffdrive.lockstep.participant import ROSTER_QOS
 from sim_diffdrive.node_names import node_names
@@ -91,7 +93,9 @@ class LockstepOwner:
         self.ledger = StepLedger(self._owner_id)
         self._bad_answers = Throttle(5.0)
         self._answer_topic = answer_topic(clock_topic)
-        sim.create_subscription(String, self._answer_topic, self._on_answer, ANSWER_QOS)
+        # As bytes, read as text (string_text): an answer is no String object to build.
+        sim.create_subscription(String, self._answer_topic, self._on_answer, ANSWER_QOS,
+                                raw=True)
         self._waiting = None  # what the current step waits for; None: to be worked out
         self._announced = set()
         self._roster_version = -1
@@ -133,6 +137,9 @@ class LockstepOwner:
         """
         Return (steps the clock may take now, whether to re-send the current /clock).
 
+        Steps is -1 when the step has settled before budget_s has passed since wall: one
+        step once it has.
+
         now: the wall time of this look [s, monotonic]; wall: when the clock last stepped (on
         its schedule); budget_s: the wall time a step may take at real_time_factor; period_s:
         how often the clock looks without news.
@@ -157,7 +164,11 @@ class LockstepOwner:
         if waited >= budget_s:
             self._step_s += _STEP_WEIGHT * (waited - self._step_s)
             return 1, resend
-        return 0, resend
+        return -1, resend  # settled before its budget is over
+
+    def has_members(self):
+        """Return whether a participant answers (then answers pace the steps)."""
+        return len(self.ledger.members) > 1
 
     def _own_stall(self, now, wall, period_s):
         """
@@ -178,9 +189,16 @@ class LockstepOwner:
         """Look from now on: the clock timer starts its period again (a new real_time_factor)."""
         self._looked = time.monotonic()
 
-    def _on_answer(self, msg):
+    def _on_answer(self, data):
         try:
-            answer = Answer.decode(msg.data)
+            try:
+                text = string_text(data)
+            except ValueError:  # another encoding: through rclpy
+                try:
+                    text = deserialize_message(data, String).data
+                except RuntimeError as error:
+                    raise ValueError(f'not a std_msgs/String ({error})') from None
+            answer = Answer.decode(text)
         except ValueError as error:
             if self._bad_answers.allows():
                 self.sim.get_logger().warning(

@@ -43,6 +43,7 @@ from sim_diffdrive.lockstep.handshake import Answer
 from sim_diffdrive.lockstep.handshake import answer_topic
 from sim_diffdrive.lockstep.handshake import Roster
 from sim_diffdrive.lockstep.handshake import roster_topic
+from sim_diffdrive.lockstep.handshake import string_bytes
 from std_msgs.msg import String
 
 _NS = 1_000_000_000
@@ -63,7 +64,8 @@ class Participant:
     def __init__(self, node):
         _check_sim_time(node)
         self.node = node
-        self.id = f'{node.get_fully_qualified_name()}#{uuid.uuid4().hex[:8]}'
+        self._name = node.get_fully_qualified_name()
+        self.id = f'{self._name}#{uuid.uuid4().hex[:8]}'
         self.owner = None
         self.joined = False
         # The latest roster from the clock owner, and when it came [s, monotonic].
@@ -163,16 +165,14 @@ class Participant:
             return  # gone, or no simulator steps in lockstep (or none yet): spare the hot path
         step_ns, counts = self._totals()
         clock_messages = self.counter.clock_messages
-        answer = Answer(self.id, self.node.get_fully_qualified_name(), step_ns, *counts[:2],
-                        leaving, *counts[2:])
+        answer = Answer(self.id, self._name, step_ns, *counts[:2], leaving, *counts[2:])
         repeated_clock = clock_messages != self._last_clock_messages
         if (answer == self._last and not repeated_clock) or not self.node.context.ok():
             return
         self._last = answer
         self._last_clock_messages = clock_messages
-        msg = String()
-        msg.data = answer.encode()
-        self._publisher.publish(msg)
+        # As bytes: a String message object and its conversion cost more than the text.
+        self._publisher.publish(string_bytes(answer.encode()))
 
     def _totals(self):
         """Return (step [ns], (sent, heard, sent_stamp, heard_stamp)) of the nodes together."""
@@ -385,7 +385,8 @@ def _settled_ns(node, counter):
     if clock_ns is None or node.get_clock().now().nanoseconds != clock_ns:
         return None
     for timer in node.timers:
-        if timer.is_canceled() or timer.clock.clock_type != ClockType.ROS_TIME:
+        # The clock type first: a Python attribute, where is_canceled() takes the timer's lock.
+        if timer.clock.clock_type != ClockType.ROS_TIME or timer.is_canceled():
             continue
         due = timer.time_until_next_call()
         if due is not None and due <= 0:

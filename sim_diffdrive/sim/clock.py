@@ -47,9 +47,14 @@ _NS = 1_000_000_000
 # second of simulated time and an idle graph runs at the full real_time_factor.
 _PACING_MARGIN = 2.0
 _REACTION_DECAY = 0.98
-# In lockstep the clock timer only paces and watches for laggards (answers drive the steps),
-# so it need not fire more often than this [s]; without members it catches up in bursts.
+# In lockstep the clock timer paces and watches for laggards (answers drive the steps), so it
+# need not fire more often than this [s]; without members it catches up in bursts.
 _LOCKSTEP_TICK_S = 0.0005
+# With members, a step shorter than its budget is paced by news (the answer that settles it
+# waits out the rest of the budget), so the timer only watches: re-sends after 10 ms or more,
+# timeouts of seconds.  Faster, its ticks cost the simulator more CPU than the step's
+# messages (2-4 ticks per step at real_time_factor 100) [s].
+_WATCH_TICK_S = 0.002
 # How often a simulator that owns time looks for another publisher on its clock topic [s, wall]:
 # at a high real_time_factor a graph query every step would cost more than the step.
 _OWNERS_CHECK_S = 1.0
@@ -232,6 +237,9 @@ class _TimedClock(OwnedClock):
 
     def set_real_time_factor(self, value):
         super().set_real_time_factor(value)
+        self._set_period()
+
+    def _set_period(self):
         self.timer.timer_period_ns = round(self.period_s() * _NS)
         self.timer.reset()
 
@@ -283,13 +291,16 @@ class LockstepClock(_TimedClock):
         super().__init__(sim)
         # Before the robots' cmd_vel subscriptions: see LockstepOwner.__init__.
         self.owner = LockstepOwner(sim, self.topic, on_news=self._look)
+        self._watching = False  # whether the owner has members, so news paces the steps
 
     def start(self):
         self.owner.start()
         super().start()
 
     def period_s(self):
-        return max(self.budget_s, _LOCKSTEP_TICK_S)
+        if self.budget_s >= _LOCKSTEP_TICK_S:
+            return self.budget_s
+        return _WATCH_TICK_S if self._watching else _LOCKSTEP_TICK_S
 
     def set_real_time_factor(self, value):
         super().set_real_time_factor(value)
@@ -301,10 +312,20 @@ class LockstepClock(_TimedClock):
     def _look(self):
         """Take the steps the owner allows now; re-send /clock when it says so."""
         wall = self.wall
-        steps, resend = self.owner.may_step(time.monotonic(), wall, self.budget_s,
-                                            self.period_s())
+        owner = self.owner
+        steps, resend = owner.may_step(time.monotonic(), wall, self.budget_s, self.period_s())
         if resend:
             self.repeat()
+        watching = owner.has_members()
+        if watching != self._watching:
+            self._watching = watching
+            self._set_period()
+        if steps < 0:
+            if self.period_s() <= self.budget_s:
+                return  # the next tick comes when the budget is over
+            # The budget is shorter than a tick: wait out the rest of it here.
+            time.sleep(max(wall + self.budget_s - time.monotonic(), 0.0))
+            steps = 1
         for _ in range(steps):
             self.step()
         if steps:

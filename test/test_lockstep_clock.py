@@ -1,0 +1,81 @@
+# Copyright 2026 motion_challenges contributors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""The lockstep clock across nodes: answers pace it, its timer only watches, and its bytes."""
+
+import time
+
+from geometry_msgs.msg import Twist
+from nav_msgs.msg import Odometry
+import pytest
+from rclpy.node import Node
+from rclpy.serialization import deserialize_message
+from rclpy.serialization import serialize_message
+from sim_diffdrive.lockstep.handshake import string_bytes
+from sim_diffdrive.lockstep.handshake import string_text
+from sim_diffdrive.lockstep.participant import take_part
+from sim_diffdrive.sim import clock as clock_module
+from std_msgs.msg import String
+
+NS = 1_000_000_000
+
+
+@pytest.mark.parametrize('text', ['', 'step', '{"id":"/m#1","heard":{"/odom":3}}', 'héllo'])
+def test_an_answer_as_bytes_is_the_string_rclpy_serializes(text):
+    data = string_bytes(text)
+    assert data == serialize_message(String(data=text))
+    assert string_text(data) == text == deserialize_message(data, String).data
+
+
+def test_a_string_in_another_layout_is_refused_not_misread():
+    little = string_bytes('abc')
+    big = b'\x00\x00\x00\x00' + (4).to_bytes(4, 'big') + b'abc\x00'
+    assert string_text(big) == 'abc'
+    for data in (b'\x00\x03' + little[2:], little[:9], b''):
+        with pytest.raises(ValueError):
+            string_text(data)
+
+
+class Driver(Node):
+    """A controller on sim time: a command at every 20 ms step, in the simulator's lockstep."""
+
+    def __init__(self, **kwargs):
+        super().__init__('driver', **kwargs)
+        self.pub = self.create_publisher(Twist, 'cmd_vel', 10)
+        self.create_subscription(Odometry, 'odom', lambda msg: None, 10)
+        self.create_timer(0.02, lambda: self.pub.publish(Twist()))
+        self.lockstep = take_part(self)
+
+
+def test_answers_pace_the_clock_and_its_timer_only_watches(graph, monkeypatch):
+    # Ticks longer than a step's budget (4 ms at real_time_factor 5), as 0.5 and 2 ms are at
+    # factors above 40 across processes: a step that settles sooner waits out the rest of its
+    # budget, neither stepping at once nor waiting for a tick.
+    monkeypatch.setattr(clock_module, '_LOCKSTEP_TICK_S', 0.02)
+    monkeypatch.setattr(clock_module, '_WATCH_TICK_S', 0.05)
+    sim = graph.sim(stepped=False, publish_clock=True, lockstep=True, real_time_factor=5.0)
+    clock = sim.clock
+    assert clock.timer.timer_period_ns == 20_000_000  # freewheeling: it catches up in bursts
+    ticks = []
+    clock.timer.callback = lambda: (ticks.append(sim.now_ns()), clock._on_timer())
+    driver = graph.node(Driver)
+    assert graph.spin_until(lambda: driver.lockstep.joined, 10.0)
+    assert clock.timer.timer_period_ns == 50_000_000  # answers drive the steps now
+    start_ns, start_wall, ticked = sim.now_ns(), time.monotonic(), len(ticks)
+    assert graph.spin_until(lambda: sim.now_ns() - start_ns >= NS // 2, 30.0)
+    sim_s, wall_s = (sim.now_ns() - start_ns) / NS, time.monotonic() - start_wall
+    assert sim_s <= 5.0 * wall_s + 0.02  # a step's catching up at most
+    assert len(ticks) - ticked < 25 / 2  # 25 steps, most of them taken on answers
+    driver.lockstep.leave()
+    assert graph.spin_until(lambda: clock.timer.timer_period_ns == 20_000_000, 5.0)
