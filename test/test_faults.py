@@ -15,8 +15,9 @@
 """
 Faults where a user meets them: bad input everywhere, floods, two controllers at once.
 
-The real executables over DDS, each scenario in its own ROS namespace with its own simulator
-(and ``/clock`` there too).  Interrupts and a simulator restarted mid-motion are in
+The real executables over DDS, or simulator nodes in this process where a process would show
+nothing more, each scenario in its own ROS namespace with its own simulator (and ``/clock``
+there too).  Interrupts and a simulator restarted mid-motion are in
 test_interrupts.py; longer runs (a 10 kHz cmd_vel flood for 10 s, memory over time) in
 ``tools/stress.py``.
 """
