@@ -17,6 +17,7 @@
 import time
 
 from geometry_msgs.msg import Twist
+from motion_challenges.rotate_robot import RotateRobot
 from nav_msgs.msg import Odometry
 import pytest
 from rclpy.node import Node
@@ -45,6 +46,16 @@ def test_a_string_in_another_layout_is_refused_not_misread():
     for data in (b'\x00\x03' + little[2:], little[:9], b''):
         with pytest.raises(ValueError):
             string_text(data)
+
+
+def test_a_motions_command_bytes_are_the_twist_rclpy_serializes(graph):
+    motion = graph.node(RotateRobot, angular_speed_deg=30.0, angle_deg=90.0, clockwise=False)
+    sent = []
+    motion.cmd_pub.publish = sent.append
+    motion.publish_command(0.25, -1)
+    twist = Twist()
+    twist.linear.x, twist.angular.z = 0.25, -1.0
+    assert sent == [serialize_message(twist)]
 
 
 class Driver(Node):
