@@ -403,3 +403,15 @@ def test_leaving_is_final(joined):
     owner.step()
     assert ledger.waiting_for(owner.now) == []
     assert ledger.synced() == {'sim'}
+
+
+def test_answered_says_whether_only_counts_are_left_to_wait_for(joined):
+    ledger, owner = joined
+    owner.step()
+    assert not ledger.answered(owner.now)  # its command may come: answers are due first
+    assert ledger.waiting_for(owner.now) == [('m', None, 0)]
+    ledger.receive(motion(owner.now, 1, 2, owner.now), owner.now)  # overtook its command
+    assert ledger.answered(owner.now)
+    assert ledger.waiting_for(owner.now) == [('sim', CMD, 1)]
+    owner.hear_command()
+    assert ledger.answered(owner.now) and ledger.waiting_for(owner.now) == []

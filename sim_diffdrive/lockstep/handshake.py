@@ -305,8 +305,7 @@ class StepLedger:
         # Most news during a step is one more answer while others are still missing: say so
         # at once, without the counts (which cost time in proportion to members x topics).
         missing = [(pid, None, 0) for pid, member in self.members.items()
-                   if member.answer.step_ns < now_ns and not member.leaving
-                   and (member.synced or member.joined_ns < now_ns)]
+                   if self._unanswered(member, now_ns)]
         if missing:
             return missing
         reasons = []
@@ -336,6 +335,15 @@ class StepLedger:
                 del self.members[pid]
                 self.version += 1
         return reasons
+
+    def answered(self, now_ns):
+        """Return whether every member has answered the step at now_ns (see waiting_for)."""
+        return not any(self._unanswered(member, now_ns) for member in self.members.values())
+
+    @staticmethod
+    def _unanswered(member, now_ns):
+        return (member.answer.step_ns < now_ns and not member.leaving
+                and (member.synced or member.joined_ns < now_ns))
 
     def next_step(self, now_ns):
         """

@@ -115,7 +115,7 @@ class LockstepOwner:
         # The simulator's own traffic (cmd_vel heard, odom sent) is counted like a
         # participant's; its answer holds the counter's live dicts, so only its step changes.
         counter = MessageCounter.of(sim, self._clock_topic, fixed=True)
-        counter.listeners.append(self._on_news)
+        counter.listeners.append(self._on_heard)
         self._own_answer = Answer(self._owner_id, sim.get_fully_qualified_name(), sim.now_ns(),
                                   counter.sent, counter.heard, False, counter.sent_stamp,
                                   counter.heard_stamp)
@@ -212,6 +212,15 @@ class LockstepOwner:
                 f'Lockstep: {answer.node} left at {now_ns / _NS:.3f} s ({member.answers} '
                 f'answers in {steps} steps)')
         self._on_news()
+
+    def _on_heard(self):
+        """Look again after a message the simulator handled (a command), unless answers are due."""
+        self._waiting = None
+        # A step's command comes just before its answer, which is news of its own: looking
+        # now costs the simulator a look at every step on the way to stepping.  A command
+        # that comes after every answer (it was overtaken) is looked at.
+        if self.ledger.answered(self.sim.now_ns()):
+            self._on_news()
 
     def _on_news(self):
         """Something the step may wait for has arrived (an answer, a command): look again."""
