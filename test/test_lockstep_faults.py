@@ -18,8 +18,9 @@ What an ordinary graph does to simulated time and to a motion's start, with the 
 A node that does not take part publishing stale or zero stamps on cmd_vel, a participant that
 leaves, a participant spun by a MultiThreadedExecutor, and a cmd_vel listener that is not the
 robot: none of them may stall the clock, drop anyone from the lockstep, or let a motion say
-Done without its robot.  (The lossy link is test_two_hosts.py; a participant killed mid-run,
-a busy machine and a slow participant are test_lockstep_processes.py.)
+Done without its robot (one that never comes: test_motion_processes.py).  (The lossy link is
+test_two_hosts.py; a participant killed mid-run, a busy machine and a slow participant are
+test_lockstep_processes.py.)
 """
 
 import math
@@ -190,12 +191,3 @@ def test_a_timed_motion_whose_simulator_dies_stops_and_fails(graph):
     assert code == 1, output
     assert 'with no word from the simulator; stopped the robot' in output, output
     assert 'Traceback' not in output and 'Done' not in output, output
-
-
-def test_without_a_robot_the_motion_gives_up_and_never_says_done(graph):
-    graph.probe('cmd_vel_listener', use_sim_time=False, listen_only=True,
-                odom_topic='unused_odom', record_commands=True)
-    code, output = finish(graph, start('rotate_robot', 'start_timeout:=1.0', *ROTATE))
-    assert code == 1, output
-    assert 'Gave up after' in output and 'waiting for the robot' in output
-    assert 'Done' not in output
