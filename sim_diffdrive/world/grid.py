@@ -27,8 +27,6 @@ import math
 import os
 
 import numpy as np
-from PIL import Image
-from PIL import UnidentifiedImageError
 import yaml
 
 OCCUPIED = 100
@@ -198,6 +196,9 @@ def load_map(yaml_path):
     image_path = image if os.path.isabs(image) else os.path.join(os.path.dirname(path), image)
     if not os.path.isfile(image_path):
         raise MapError("%s: 'image' file %s does not exist" % (where, image_path))
+    # Pillow only to read a map: a simulator without one starts without loading it.
+    from PIL import Image
+    from PIL import UnidentifiedImageError
     try:
         with Image.open(image_path) as img:
             grey, alpha = _quanta(img)
