@@ -17,8 +17,9 @@ The closed loops of the motions on plain numbers: poses, nanoseconds, speeds (no
 
 A node converts its odometry to ``Pose``, logs what it publishes in a ``CommandLog``, and asks
 a ``SpinController`` or an ``OutAndBack`` what to command next; ``odometry_fault`` says when
-odometry cannot be trusted.  Units are SI (m, rad, s; times in integer nanoseconds of the node
-clock) and signs follow REP 103 (counter-clockwise positive).
+odometry cannot be trusted, ``Standstill`` when the robot does not move as commanded.  Units
+are SI (m, rad, s; times in integer nanoseconds of the node clock) and signs follow REP 103
+(counter-clockwise positive).
 """
 
 import collections
@@ -132,6 +133,46 @@ def odometry_fault(last, pose, commands, tolerance=JUMP_TOLERANCE, velocity=(0.0
         return (f'Odometry jumped {moved:.3f} m and {math.degrees(abs(turned)):.1f} deg '
                 'between two messages')
     return ''
+
+
+class Standstill:
+    """
+    Tells a robot that stands still although commanded to move: pushed against a wall, say.
+
+    ``update(last, pose, commands, velocity, accel)`` with each odometry.  The count starts at
+    the first odometry interval in which the commands (CommandLog.predict from velocity) would
+    have moved the robot, and goes on while its pose stays within STILL_M and STILL_RAD of
+    where it was; after STUCK_S, with more than WAY_M or WAY_RAD commanded in all, it returns
+    why the robot is stuck (else '').  A pose that moves, or a stop, ends the count.
+    """
+
+    STILL_M = 1e-9
+    STILL_RAD = 1e-9
+    WAY_M = 0.05
+    WAY_RAD = 0.05
+    STUCK_S = 1.0
+
+    def __init__(self):
+        self._since_ns = None  # the stamp from which it stood still while commanded, or None
+        self._way = (0.0, 0.0)  # metres and radians commanded since then
+
+    def update(self, last, pose, commands, velocity=(0.0, 0.0), accel=(0.0, 0.0)):
+        turned = abs(math.remainder(pose.yaw - last.yaw, 2.0 * math.pi))
+        (metres, radians), _ = commands.predict(last.stamp_ns, pose.stamp_ns, velocity, accel)
+        if (pose.distance_to(last) > self.STILL_M or turned > self.STILL_RAD
+                or (metres == 0.0 and radians == 0.0)):
+            self._since_ns = None
+            return ''
+        if self._since_ns is None:
+            self._since_ns, self._way = last.stamp_ns, (0.0, 0.0)
+        self._way = (self._way[0] + abs(metres), self._way[1] + abs(radians))
+        still_s = (pose.stamp_ns - self._since_ns) / NS
+        if still_s < self.STUCK_S or not (self._way[0] > self.WAY_M
+                                          or self._way[1] > self.WAY_RAD):
+            return ''
+        return (f'The robot has stood still at ({pose.x:.3f}, {pose.y:.3f}) for {still_s:.1f} s '
+                f'while commanded to go {self._way[0]:.3f} m and turn '
+                f'{math.degrees(self._way[1]):.1f} deg (against a wall or another robot?)')
 
 
 class Approach:

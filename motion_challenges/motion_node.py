@@ -40,6 +40,7 @@ from motion_challenges.closing import closing_line
 from motion_challenges.closing import DONE
 from motion_challenges.controllers import CommandLog
 from motion_challenges.controllers import odometry_fault
+from motion_challenges.controllers import Standstill
 from motion_challenges.motion_state import MotionState
 from motion_challenges.robot_watch import RobotWatch
 from motion_challenges.robot_watch import WATCHDOG_PERIOD_S
@@ -107,6 +108,7 @@ class MotionNode(Node):
         self.start_odom = None
         self.turned = YawAccumulator()
         self.commands = CommandLog()
+        self._standstill = Standstill()  # a closed loop's robot that does not move as commanded
         self.state = MotionState.WAITING
         self.done = False
         self.exit_code = None
@@ -235,6 +237,12 @@ class MotionNode(Node):
                                    velocity=self.odom.twist, accel=self.robot_accel)
             if fault:
                 self._distrust(fault)
+                return
+            stuck = self._standstill.update(self.odom, odom, self.commands,
+                                            velocity=self.odom.twist, accel=self.robot_accel)
+            if stuck:
+                self.odom = odom
+                self.finish(EXIT_FAILED, stuck + '; stopped the robot')
                 return
         self.odom = odom
         self.turned.update(odom.yaw)

@@ -27,6 +27,7 @@ from motion_challenges.controllers import odometry_fault
 from motion_challenges.controllers import OutAndBack
 from motion_challenges.controllers import Pose
 from motion_challenges.controllers import SpinController
+from motion_challenges.controllers import Standstill
 from motion_challenges.controllers import Step
 from motion_challenges.controllers import TOLERANCE
 from motion_challenges.plans import speed_ramp
@@ -334,3 +335,38 @@ def test_command_log_nobody_asks_keeps_only_its_horizon():
         log.add(k * MS, 1.0, 0.0)
     assert len(log) <= 1001
     assert log.predict(8999 * MS, 9999 * MS)[0] == pytest.approx((1.0, 0.0), rel=1e-12)
+
+
+def _stand(watch, commands, stamps_s, moving=()):
+    """Feed odometry at stamps_s (moving at the indices in moving); return the last answer."""
+    pose, answer = Pose(1.0, 2.0, 0.5, 0), ''
+    for i, stamp_s in enumerate(stamps_s):
+        x = pose.x + (0.01 if i in moving else 0.0)
+        nxt = Pose(x, pose.y, pose.yaw, round(stamp_s * NS))
+        answer = watch.update(pose, nxt, commands)
+        pose = nxt
+    return answer
+
+
+def test_a_robot_commanded_but_still_for_a_second_is_stuck():
+    commands = CommandLog()
+    commands.add(0, 0.2, 0.0)
+    watch = Standstill()
+    assert _stand(watch, commands, [0.02 * k for k in range(1, 50)]) == ''  # 0.98 s
+    stuck = watch.update(Pose(1.0, 2.0, 0.5, round(0.98 * NS)),
+                         Pose(1.0, 2.0, 0.5, round(1.0 * NS)), commands)
+    assert stuck.startswith('The robot has stood still at (1.000, 2.000) for 1.0 s while '
+                            'commanded to go 0.200 m and turn 0.0 deg'), stuck
+
+
+def test_a_robot_that_moves_or_is_told_to_stay_is_not_stuck():
+    commands = CommandLog()
+    commands.add(0, 0.2, 0.0)
+    # It moves once in the second: the count starts again from there.
+    assert _stand(Standstill(), commands, [0.02 * k for k in range(1, 60)], moving={30}) == ''
+    still = CommandLog()
+    still.add(0, 0.0, 0.0)
+    assert _stand(Standstill(), still, [0.02 * k for k in range(1, 200)]) == ''
+    creep = CommandLog()  # commanded less than WAY_M in all
+    creep.add(0, 0.01, 0.0)
+    assert _stand(Standstill(), creep, [0.02 * k for k in range(1, 200)]) == ''

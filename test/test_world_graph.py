@@ -26,6 +26,7 @@ import signal
 
 from geometry_msgs.msg import PoseWithCovarianceStamped
 from geometry_msgs.msg import Twist
+from motion_challenges.odom_out_and_back import OdomOutAndBack
 from nav_msgs.msg import OccupancyGrid
 import numpy as np
 import pytest
@@ -118,6 +119,21 @@ def test_a_robot_driven_into_a_wall_stops_at_contact_and_drives_away_again(graph
     assert graph.pose()[0] == pytest.approx(2.0 - RADIUS - 0.3, abs=1e-9)
     warnings = [line for line in capfd.readouterr().err.splitlines() if 'Hit a wall' in line]
     assert len(warnings) == 1 and '(1.895, 0.300) in map' in warnings[0]
+
+
+def test_a_closed_loop_driven_into_a_wall_fails_and_leaves_the_robot_stopped(graph, capfd):
+    # 3 m out from x = 0.5: the inner wall's face is at x = 2.0.  The motion's odometry stands
+    # still at contact while it still commands 0.2 m/s: a second later it gives up.
+    graph.sim(map_file=ROOM, initial_x=0.5, initial_y=0.3)
+    motion = graph.node(OdomOutAndBack, legs=1, goal_distance=3.0)
+    graph.step_until(lambda: motion.done, 20.0)
+    graph.step_for(0.1)
+    assert motion.exit_code == 1
+    assert graph.pose()[0] == pytest.approx(2.0 - RADIUS, abs=1e-9)
+    assert twist_of(graph.odom()) == (0.0, 0.0)
+    errors = [line for line in capfd.readouterr().err.splitlines() if '[ERROR]' in line]
+    assert len(errors) == 1 and 'The robot has stood still at (1.895, 0.300) for 1.0 s' in \
+        errors[0] and 'against a wall or another robot?' in errors[0], errors
 
 
 def test_a_robot_on_an_arc_stops_where_its_arc_meets_the_wall(graph):
