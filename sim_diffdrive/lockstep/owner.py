@@ -20,8 +20,10 @@ the owner listens to the participants' answers on ``<clock>/answers`` (see hands
 participant.py), publishes who is counted on ``<clock>/roster``, and answers ``may_step``: how
 many steps the clock may take now (it freewheels until the first answer, as PX4's lockstep
 does, and then waits for the last step to settle) and whether to re-send the current /clock.
-It is a policy: it neither steps nor writes the clock (sim/clock.py's LockstepClock does both,
-and calls ``on_news`` of its own when an answer or a command may have settled the step).
+It is a policy: it neither steps nor writes the clock, and calls nobody back.  sim/clock.py's
+LockstepClock does both, hands it each answer (``hear_answer``) and tells it of each message
+the simulator handled (``heard_message``); each says whether the step may have settled, and
+the clock then asks ``may_step``.
 
 No single lost sample may stall or skew a run.  While the clock is held the owner re-sends the
 current ``/clock`` and the roster (rclpy's TimeSource takes ``/clock`` best-effort, so a lost
@@ -44,7 +46,6 @@ from sim_diffdrive.lockstep.handshake import answer_topic
 from sim_diffdrive.lockstep.handshake import roster_topic
 from sim_diffdrive.lockstep.handshake import StepLedger
 from sim_diffdrive.lockstep.handshake import string_text
-from sim_diffdrive.lockstep.participant import ANSWER_QOS
 from sim_diffdrive.lockstep.participant import ROSTER_QOS
 from sim_diffdrive.node_names import node_names
 from sim_diffdrive.throttle import Throttle
@@ -77,25 +78,13 @@ UNDISCOVERED_TIMEOUTS = 3
 class LockstepOwner:
     """Decide when the simulator ``sim`` may step its clock, published on ``clock_topic``."""
 
-    def __init__(self, sim, clock_topic, on_news):
-        """
-        Listen for answers; call before the simulator creates its robots' subscriptions.
-
-        Discovery announces a node's subscriptions in the order they were made, so a motion
-        that has discovered its robot's cmd_vel subscription knows of this one too, and cannot
-        take a lockstep owner for a free clock on a lossy link (Participant.owner_present).
-        """
+    def __init__(self, sim, clock_topic):
         self.sim = sim
         self._clock_topic = clock_topic
-        # Called when something the step waits for has arrived (the clock then looks again).
-        self._news = on_news
         self._owner_id = sim.get_fully_qualified_name() + '#owner'
         self.ledger = StepLedger(self._owner_id)
         self._bad_answers = Throttle(5.0)
-        self._answer_topic = answer_topic(clock_topic)
-        # As bytes, read as text (string_text): an answer is no String object to build.
-        sim.create_subscription(String, self._answer_topic, self._on_answer, ANSWER_QOS,
-                                raw=True)
+        self.answer_topic = answer_topic(clock_topic)
         self._waiting = None  # what the current step waits for; None: to be worked out
         self._announced = set()
         self._roster_version = -1
@@ -108,20 +97,24 @@ class LockstepOwner:
         self._stalled_s = 0.0  # how long the simulator itself did not run during this step
 
     def start(self):
-        """Count the simulator's own traffic from here on (once its robots exist); go."""
+        """
+        Count the simulator's own traffic from here on (once its robots exist); go.
+
+        Return its MessageCounter, whose listeners the clock adds itself to.
+        """
         sim = self.sim
         self._roster_pub = sim.create_publisher(String, roster_topic(self._clock_topic),
                                                 ROSTER_QOS)
         # The simulator's own traffic (cmd_vel heard, odom sent) is counted like a
         # participant's; its answer holds the counter's live dicts, so only its step changes.
         counter = MessageCounter.of(sim, self._clock_topic, fixed=True)
-        counter.listeners.append(self._on_heard)
         self._own_answer = Answer(self._owner_id, sim.get_fully_qualified_name(), sim.now_ns(),
                                   counter.sent, counter.heard, False, counter.sent_stamp,
                                   counter.heard_stamp)
         self.ledger.receive(self._own_answer, sim.now_ns())
         self.ledger.waiting_for(sim.now_ns())  # counts itself from the start
         self._publish_roster()
+        return counter
 
     def next_step(self, step_ns):
         """Start counting answers for the step to step_ns (the simulator is about to take it)."""
@@ -189,7 +182,8 @@ class LockstepOwner:
         """Look from now on: the clock timer starts its period again (a new real_time_factor)."""
         self._looked = time.monotonic()
 
-    def _on_answer(self, data):
+    def hear_answer(self, data):
+        """Take an answer (a std_msgs/String's bytes); return whether the step may have settled."""
         try:
             try:
                 text = string_text(data)
@@ -202,8 +196,8 @@ class LockstepOwner:
         except ValueError as error:
             if self._bad_answers.allows():
                 self.sim.get_logger().warning(
-                    f'Ignoring a message on {self._answer_topic}: {error}')
-            return
+                    f'Ignoring a message on {self.answer_topic}: {error}')
+            return False
         now_ns = self.sim.now_ns()
         if self.ledger.receive(answer, now_ns, time.monotonic()) == 'left':
             member = self.ledger.members[answer.participant]
@@ -211,25 +205,23 @@ class LockstepOwner:
             self.sim.get_logger().info(
                 f'Lockstep: {answer.node} left at {now_ns / _NS:.3f} s ({member.answers} '
                 f'answers in {steps} steps)')
-        self._on_news()
+        return self._news()
 
-    def _on_heard(self):
-        """Look again after a message the simulator handled (a command), unless answers are due."""
+    def heard_message(self):
+        """After a message the simulator handled (a command): return whether to look again."""
         self._waiting = None
         # A step's command comes just before its answer, which is news of its own: looking
         # now costs the simulator a look at every step on the way to stepping.  A command
         # that comes after every answer (it was overtaken) is looked at.
-        if self.ledger.answered(self.sim.now_ns()):
-            self._on_news()
+        return self.ledger.answered(self.sim.now_ns()) and self._news()
 
-    def _on_news(self):
-        """Something the step may wait for has arrived (an answer, a command): look again."""
+    def _news(self):
+        """Something the step may wait for has arrived: return whether it paces the steps."""
         self._waiting = None
-        if len(self.ledger.members) > 1:
-            self._news()
         # Without participants the clock timer alone paces the steps: stepping on every
         # command too ran catch-up bursts from inside the command callbacks, and a simulator
         # stepping as fast as it could then lost commands (its cmd_vel queues overflowed).
+        return len(self.ledger.members) > 1
 
     def _publish_roster(self, waiting=(), wall=None):
         """

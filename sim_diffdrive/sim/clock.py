@@ -38,8 +38,10 @@ from rclpy.qos import ReliabilityPolicy
 from rosgraph_msgs.msg import Clock as ClockMsg
 from sim_diffdrive.cdr import clock_message
 from sim_diffdrive.lockstep.owner import LockstepOwner
+from sim_diffdrive.lockstep.participant import ANSWER_QOS
 from sim_diffdrive.lockstep.participant import take_part
 from sim_diffdrive.node_names import node_names
+from std_msgs.msg import String
 
 _NS = 1_000_000_000
 # Free clock pacing: wait this many times the graph's recent reaction time between steps; the
@@ -289,13 +291,26 @@ class LockstepClock(_TimedClock):
 
     def __init__(self, sim):
         super().__init__(sim)
-        # Before the robots' cmd_vel subscriptions: see LockstepOwner.__init__.
-        self.owner = LockstepOwner(sim, self.topic, on_news=self._look)
+        self.owner = LockstepOwner(sim, self.topic)
+        # Before the robots' cmd_vel subscriptions: discovery announces a node's subscriptions
+        # in the order they were made, so a motion that has discovered its robot's cmd_vel
+        # subscription knows of this one too, and cannot take a lockstep owner for a free
+        # clock on a lossy link (Participant.owner_present).  As bytes (string_text).
+        sim.create_subscription(String, self.owner.answer_topic, self._on_answer, ANSWER_QOS,
+                                raw=True)
         self._watching = False  # whether the owner has members, so news paces the steps
 
     def start(self):
-        self.owner.start()
+        self.owner.start().listeners.append(self._on_heard)
         super().start()
+
+    def _on_answer(self, data):
+        if self.owner.hear_answer(data):
+            self._look()
+
+    def _on_heard(self):
+        if self.owner.heard_message():
+            self._look()
 
     def period_s(self):
         if self.budget_s >= _LOCKSTEP_TICK_S:
