@@ -13,40 +13,58 @@
 # limitations under the License.
 
 """
-The sim_graph fixture as a user meets it: the README's example, run from a directory of its own.
+The sim_graph fixture as a user meets it: the documented examples, run from directories.
 
-The example is taken from the README as written and run by pytest in a temporary directory
-outside the project (no conftest, only the installed plugin); a copy whose controller stops
-too early must fail, so the example's assertions are real.
+Each example is taken from its page as written (the README's, and docs/world.md's controller
+that reads the scan) and run by pytest in a temporary directory outside the project (no
+conftest, only the installed plugin); a copy whose controller stops too early must fail, so
+the example's assertions are real.
 """
 
 from pathlib import Path
 import re
+import shutil
 import subprocess
 import sys
 
-README = Path(__file__).resolve().parents[1] / 'README.md'
+ROOT = Path(__file__).resolve().parents[1]
 
 
-def readme_example():
-    text = README.read_text()
-    match = re.search(r'<!-- sim_graph example -->\n```python\n(.*?)```', text, re.S)
-    assert match, 'README lost its sim_graph example'
+def page_example(page, marker):
+    text = (ROOT / page).read_text()
+    match = re.search(rf'<!-- {marker} -->\n```python\n(.*?)```', text, re.S)
+    assert match, f'{page} lost its {marker}'
     return match.group(1)
 
 
-def test_the_readme_example_passes_from_a_directory_of_its_own_and_can_fail(tmp_path):
-    example = readme_example()
-    (tmp_path / 'test_my_controller.py').write_text(example)
-    # The same controller stopping half a second early must fail the same assertions.
-    (tmp_path / 'test_stops_early.py').write_text(
-        example.replace('2_000_000_000', '1_500_000_000'))
+def run_example_and_early_copy(directory, example, early, test_name):
+    """Run example and its early-stopping copy with pytest in directory; check 1 of 2 fails."""
+    assert early != example
+    (directory / 'test_example.py').write_text(example)
+    (directory / 'test_stops_early.py').write_text(early)
     result = subprocess.run(
         [sys.executable, '-m', 'pytest', '-q', '-p', 'no:cacheprovider', '-W',
-         'ignore::DeprecationWarning', '-rA', 'test_my_controller.py', 'test_stops_early.py'],
-        cwd=tmp_path, capture_output=True, text=True, timeout=120)
+         'ignore::DeprecationWarning', '-rA', 'test_example.py', 'test_stops_early.py'],
+        cwd=directory, capture_output=True, text=True, timeout=120)
     output = result.stdout + result.stderr
     assert result.returncode == 1, output
     assert '1 failed, 1 passed' in output
-    assert 'PASSED test_my_controller.py::test_drives_one_metre_and_stops' in output
-    assert 'FAILED test_stops_early.py::test_drives_one_metre_and_stops' in output
+    assert f'PASSED test_example.py::{test_name}' in output
+    assert f'FAILED test_stops_early.py::{test_name}' in output
+
+
+def test_the_readme_example_passes_from_a_directory_of_its_own_and_can_fail(tmp_path):
+    example = page_example('README.md', 'sim_graph example')
+    # The same controller stopping half a second early must fail the same assertions.
+    run_example_and_early_copy(tmp_path, example,
+                               example.replace('2_000_000_000', '1_500_000_000'),
+                               'test_drives_one_metre_and_stops')
+
+
+def test_the_scan_example_passes_from_a_directory_of_its_own_and_can_fail(tmp_path):
+    example = page_example('docs/world.md', 'scan example')
+    shutil.copytree(ROOT / 'maps', tmp_path / 'maps')
+    # Stopping a whole metre before the wall must fail.
+    run_example_and_early_copy(tmp_path, example,
+                               example.replace('if ahead > 0.5:', 'if ahead > 1.0:'),
+                               'test_stops_half_a_metre_before_the_wall')
