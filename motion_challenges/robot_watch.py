@@ -207,15 +207,21 @@ class RobotWatch:
         if now_ns != self._clock_seen_ns or self._clock_moved_wall is None:
             self._clock_seen_ns, self._clock_moved_wall = now_ns, wall
             return
-        last_sign = self._clock_moved_wall
-        if node.lockstep is not None and node.lockstep.roster_wall is not None:
-            last_sign = max(last_sign, node.lockstep.roster_wall)  # as in _watch_odometry
-        silent = wall - last_sign
+        silent = self._silent_since(self._clock_moved_wall, wall)
         if silent > node.params.odom_timeout:
             node.finish(EXIT_FAILED, f'Simulated time stood still at {now_ns / _NS:.3f} s for '
                                      f'{silent:.1f} s mid-motion with no word from the '
                                      'simulator; stopped the robot (is the simulator still '
                                      'running?)')
+
+    def _silent_since(self, last_wall, wall):
+        """Return how long the simulator has said nothing [s]: since last_wall or its roster."""
+        lockstep = self._node.lockstep
+        if lockstep is not None and lockstep.roster_wall is not None:
+            # In lockstep the simulator repeats its roster while it holds the clock for a slow
+            # or joining node: odometry is late then because time stands still.
+            last_wall = max(last_wall, lockstep.roster_wall)
+        return wall - last_wall
 
     def _watch_odometry(self):
         node = self._node
@@ -226,12 +232,7 @@ class RobotWatch:
             # its clock or pose happens to have caught up with the last.
             self._distrust(f'{publishers} publishers on {self._odom_topic} mid-motion')
             return
-        last_sign = self._odom_wall
-        if node.lockstep is not None and node.lockstep.roster_wall is not None:
-            # In lockstep the simulator repeats its roster while it holds the clock for a slow
-            # or joining node: odometry is late then because time stands still.
-            last_sign = max(last_sign, node.lockstep.roster_wall)
-        silent = time.monotonic() - last_sign
+        silent = self._silent_since(self._odom_wall, time.monotonic())
         if silent > node.params.odom_timeout:
             node.finish(EXIT_FAILED, f'No odometry for {silent:.1f} s mid-motion; stopped '
                                      'the robot (is the simulator still running?)')
