@@ -30,7 +30,6 @@ code: the closed loops, the lag compensation (CommandLog) and the odometry check
 controllers.py, the open-loop plans in plans.py (see timed_motion.py).
 """
 
-import struct
 import time
 
 from geometry_msgs.msg import Twist
@@ -53,6 +52,7 @@ from rclpy.clock import JumpThreshold
 from rclpy.duration import Duration
 from rclpy.node import Node
 from sim_diffdrive.angles import YawAccumulator
+from sim_diffdrive.cdr import twist_message
 from sim_diffdrive.lockstep.participant import take_part
 from sim_diffdrive.parameters import declare
 from sim_diffdrive.runtime import destroyed_if_refused
@@ -63,10 +63,6 @@ from sim_diffdrive.throttle import Throttle
 __all__ = ['DONE', 'MotionNode', 'MotionState', 'closing_line']
 
 _NS = 1_000_000_000
-# A geometry_msgs/Twist as CDR bytes: the encapsulation header (little-endian CDR), then
-# linear x, y, z and angular x, y, z.
-_CDR_LITTLE_ENDIAN = b'\x00\x01\x00\x00'
-_TWIST = struct.Struct('<4s6d')
 # How long to wait for the odometry that shows where the robot came to rest: this many control
 # periods, or odom_timeout if longer.
 _SETTLE_TICKS = 20
@@ -203,8 +199,7 @@ class MotionNode(Node):
             self.cmd_pub.publish(msg)
         else:
             # As CDR bytes: building a Twist and rclpy's conversion of it cost ~40 us a command.
-            self.cmd_pub.publish(_TWIST.pack(_CDR_LITTLE_ENDIAN, linear, 0.0, 0.0, 0.0, 0.0,
-                                             angular))
+            self.cmd_pub.publish(twist_message(linear, angular))
         now_ns = self.now_ns()
         self.commands.add(now_ns, linear, angular)
         if self.state in (MotionState.RUNNING, MotionState.SETTLING):

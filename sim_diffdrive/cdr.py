@@ -13,7 +13,7 @@
 # limitations under the License.
 
 """
-The CDR bytes of the few messages the simulator sends and reads, with numpy and struct (no ROS).
+The CDR bytes of the few messages the package sends and reads, with numpy and struct (no ROS).
 
 rclpy publishes bytes and hands a ``raw=True`` subscription the bytes it received, so the hot
 path builds no message objects: odometry and /tf are patched into layouts made once per set of
@@ -91,6 +91,27 @@ def header_stamp_ns(data):
     order = _byte_order(data)
     sec, nanosec = (_LE_STAMP if order == '<' else struct.Struct('>iI')).unpack_from(data, _BODY)
     return sec * _NS + nanosec
+
+
+def string_message(text):
+    """Return the CDR bytes of a std_msgs/String holding text."""
+    return ENCAPSULATION + cdr_string(text)
+
+
+def read_string(data):
+    """Return the text of a std_msgs/String's bytes (ValueError: not one, or cut short)."""
+    order = _byte_order(data)
+    if len(data) < _BODY + 4:
+        raise ValueError('no string length')
+    (length,) = struct.unpack_from(order + 'I', data, _BODY)
+    if length < 1 or len(data) < _BODY + 4 + length:
+        raise ValueError('a string longer than its message')
+    return bytes(data[_BODY + 4:_BODY + 3 + length]).decode()
+
+
+def twist_message(linear, angular):
+    """Return the CDR bytes of a geometry_msgs/Twist of linear.x and angular.z."""
+    return ENCAPSULATION + _LE_TWIST.pack(linear, angular)
 
 
 def read_twist(data):

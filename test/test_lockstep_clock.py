@@ -23,8 +23,8 @@ import pytest
 from rclpy.node import Node
 from rclpy.serialization import deserialize_message
 from rclpy.serialization import serialize_message
-from sim_diffdrive.lockstep.handshake import string_bytes
-from sim_diffdrive.lockstep.handshake import string_text
+from sim_diffdrive.cdr import read_string
+from sim_diffdrive.cdr import string_message
 from sim_diffdrive.lockstep.participant import take_part
 from sim_diffdrive.sim import clock as clock_module
 from std_msgs.msg import String
@@ -34,18 +34,18 @@ NS = 1_000_000_000
 
 @pytest.mark.parametrize('text', ['', 'step', '{"id":"/m#1","heard":{"/odom":3}}', 'héllo'])
 def test_an_answer_as_bytes_is_the_string_rclpy_serializes(text):
-    data = string_bytes(text)
+    data = string_message(text)
     assert data == serialize_message(String(data=text))
-    assert string_text(data) == text == deserialize_message(data, String).data
+    assert read_string(data) == text == deserialize_message(data, String).data
 
 
 def test_a_string_in_another_layout_is_refused_not_misread():
-    little = string_bytes('abc')
+    little = string_message('abc')
     big = b'\x00\x00\x00\x00' + (4).to_bytes(4, 'big') + b'abc\x00'
-    assert string_text(big) == 'abc'
+    assert read_string(big) == 'abc'
     for data in (b'\x00\x03' + little[2:], little[:9], b''):
         with pytest.raises(ValueError):
-            string_text(data)
+            read_string(data)
 
 
 def test_a_motions_command_bytes_are_the_twist_rclpy_serializes(graph):

@@ -35,7 +35,6 @@ beyond what it is owed, which is forgotten at the next step, so it never stalls 
 from dataclasses import dataclass
 from dataclasses import field
 import json
-import struct
 
 # ROS 2 housekeeping topics, never counted.
 HOUSEKEEPING_TOPICS = frozenset({'/rosout', '/parameter_events'})
@@ -58,27 +57,6 @@ def ignored_topics(clock_topic):
 
 
 _NS = 1_000_000_000
-# A std_msgs/String as CDR bytes: the encapsulation header, then the text's length (its NUL
-# included), the text and a NUL.  Plain CDR and plain XCDR2 lay a string out alike.
-_LITTLE_ENDIAN = b'\x00\x01\x00\x00'
-_STRING_ENCODINGS = {0x00: '>I', 0x01: '<I', 0x06: '>I', 0x07: '<I'}
-
-
-def string_bytes(text):
-    """Return text as a serialized std_msgs/String (rclpy publishes bytes as they are)."""
-    data = text.encode()
-    return _LITTLE_ENDIAN + struct.pack('<I', len(data) + 1) + data + b'\x00'
-
-
-def string_text(data):
-    """Return the text of a serialized std_msgs/String; ValueError for another encoding."""
-    length_format = _STRING_ENCODINGS.get(data[1]) if len(data) >= 8 and not data[0] else None
-    if length_format is None:
-        raise ValueError('not plain CDR')
-    (length,) = struct.unpack_from(length_format, data, 4)
-    if length < 1 or len(data) < 8 + length:
-        raise ValueError('a string longer than its message')
-    return data[8:7 + length].decode()
 
 
 @dataclass

@@ -40,12 +40,12 @@ gives itself up.
 import time
 
 from rclpy.serialization import deserialize_message
+from sim_diffdrive.cdr import read_string
 from sim_diffdrive.lockstep.counter import MessageCounter
 from sim_diffdrive.lockstep.handshake import Answer
 from sim_diffdrive.lockstep.handshake import answer_topic
 from sim_diffdrive.lockstep.handshake import roster_topic
 from sim_diffdrive.lockstep.handshake import StepLedger
-from sim_diffdrive.lockstep.handshake import string_text
 from sim_diffdrive.lockstep.participant import ROSTER_QOS
 from sim_diffdrive.node_names import node_names
 from sim_diffdrive.throttle import Throttle
@@ -186,7 +186,7 @@ class LockstepOwner:
         """Take an answer (a std_msgs/String's bytes); return whether the step may have settled."""
         try:
             try:
-                text = string_text(data)
+                text = read_string(data)
             except ValueError:  # another encoding: through rclpy
                 try:
                     text = deserialize_message(data, String).data

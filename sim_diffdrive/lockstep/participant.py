@@ -38,12 +38,12 @@ from rclpy.qos import DurabilityPolicy
 from rclpy.qos import QoSProfile
 from rclpy.qos import ReliabilityPolicy
 from rosgraph_msgs.msg import Clock as ClockMsg
+from sim_diffdrive.cdr import string_message
 from sim_diffdrive.lockstep.counter import MessageCounter
 from sim_diffdrive.lockstep.handshake import Answer
 from sim_diffdrive.lockstep.handshake import answer_topic
 from sim_diffdrive.lockstep.handshake import Roster
 from sim_diffdrive.lockstep.handshake import roster_topic
-from sim_diffdrive.lockstep.handshake import string_bytes
 from std_msgs.msg import String
 
 _NS = 1_000_000_000
@@ -172,7 +172,7 @@ class Participant:
         self._last = answer
         self._last_clock_messages = clock_messages
         # As bytes: a String message object and its conversion cost more than the text.
-        self._publisher.publish(string_bytes(answer.encode()))
+        self._publisher.publish(string_message(answer.encode()))
 
     def _totals(self):
         """Return (step [ns], (sent, heard, sent_stamp, heard_stamp)) of the nodes together."""

@@ -295,7 +295,7 @@ class LockstepClock(_TimedClock):
         # Before the robots' cmd_vel subscriptions: discovery announces a node's subscriptions
         # in the order they were made, so a motion that has discovered its robot's cmd_vel
         # subscription knows of this one too, and cannot take a lockstep owner for a free
-        # clock on a lossy link (Participant.owner_present).  As bytes (string_text).
+        # clock on a lossy link (Participant.owner_present).  As bytes (read_string).
         sim.create_subscription(String, self.owner.answer_topic, self._on_answer, ANSWER_QOS,
                                 raw=True)
         self._watching = False  # whether the owner has members, so news paces the steps
