@@ -286,7 +286,7 @@ def test_a_backlog_of_commands_does_not_hold_the_odometry_back(graph):
     begin = time.time_ns()
     while calls[-1:] == [] or calls[-1][1] - begin < 0.3 * NS:
         start = time.time_ns()
-        robot.on_twist(commands[len(calls) % 3])
+        sim.take_command(robot, commands[len(calls) % 3])
         calls.append((start, time.time_ns()))
     end = calls[-1][1]
     graph.spin_for(0.3)
@@ -314,7 +314,7 @@ def test_a_backlog_of_commands_does_not_hold_the_odometry_back(graph):
     assert stamps[-1] > end / NS  # and the timer took over again
     # A wall clock set back (here: the last step an hour ahead of it) stops neither way of
     # stepping: each then takes its step at once.
-    for take_step in (sim.clock._on_timer, lambda: robot.on_twist(commands[0])):
+    for take_step in (sim.clock._on_timer, lambda: sim.take_command(robot, commands[0])):
         sim.clock._stepped_ns = time.time_ns() + 3600 * NS
         heard = len(watcher.odoms)
         take_step()

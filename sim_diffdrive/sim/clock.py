@@ -80,7 +80,7 @@ class FollowedClock:
     backlog of commands (more than the simulator can handle, or a burst while it was held up)
     would hold the odometry back until it was worked off: 768 robots each commanded at 50 Hz
     once left 2 odometry steps a second.  So each command is followed by the step if one is
-    due (``step_if_due``), as the timer would have taken it just after that command, and the
+    due (``take_due_step``), as the timer would have taken it just after that command, and the
     timer skips a step that a command took less than half a period before.  On another
     simulator's /clock that simulator's steps set the pace instead.
     """
@@ -109,12 +109,14 @@ class FollowedClock:
             return time.time_ns()
         return self._clock.now().nanoseconds  # the time /clock gave
 
-    def step_if_due(self):
-        """On wall time, take the odometry step now if it is due (after a command)."""
+    def take_due_step(self):
+        """On wall time, after a command: return the time of the step now due (taken), or None."""
         if self._wall:
             now_ns = time.time_ns()
             if self._since_step_ns(now_ns) >= self.sim.step_ns:
-                self._step(now_ns)
+                self._stepped_ns = now_ns
+                return now_ns
+        return None
 
     def command_arrived(self):
         """Nothing to do: this clock does not wait for the graph."""
@@ -164,8 +166,9 @@ class OwnedClock:
     def now_ns(self):
         return self.sim_ns
 
-    def step_if_due(self):
-        """Nothing to do: on owned time a late step only makes simulated time slower."""
+    def take_due_step(self):
+        """Return None: on owned time a late step only makes simulated time slower."""
+        return None
 
     def step(self):
         """Advance simulated time by one step and publish odometry and then /clock."""

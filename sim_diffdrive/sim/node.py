@@ -31,7 +31,6 @@ import time
 
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
-from rclpy.time import Time
 from sim_diffdrive.cdr import covariance
 from sim_diffdrive.cdr import OdometryLayout
 from sim_diffdrive.parameters import declare
@@ -179,7 +178,8 @@ class UnicycleSim(Node):
         self.clock = make_clock(self, stepped)
         # Where else the simulator's traffic goes (an MCAP file, Foxglove): see taps/.
         self.taps = open_taps(self)
-        self.robots = [Robot(self, i, name, self.publish_odom) for i, name in enumerate(names)]
+        self.robots = [Robot(self, i, name, self.publish_odom, self.take_command)
+                       for i, name in enumerate(names)]
         # A frame is checked against the other's value and the robots' prefixes, which a Spec
         # cannot know; added after declare()'s callbacks, this one runs before them.
         self.add_on_set_parameters_callback(self._refuse_bad_frames)
@@ -219,6 +219,14 @@ class UnicycleSim(Node):
     def step_to(self, now_ns):
         """Bring every robot up to now_ns and publish what the world says (a clock's step)."""
         self.publish_odom(self.world.step_to(now_ns))
+
+    def take_command(self, robot, data):
+        """Hand a command's bytes to its robot; then take the odometry step, if one is due."""
+        robot.take(data)
+        # A backlog of commands must not hold the odometry back (FollowedClock).
+        now_ns = self.clock.take_due_step()
+        if now_ns is not None:
+            self.step_to(now_ns)
 
     def advance_all(self, now_ns):
         """Integrate every robot up to now_ns (before something changes: a parameter, a pose)."""
@@ -335,23 +343,23 @@ class UnicycleSim(Node):
         for robot, data in zip(robots, odometry):
             robot.odom_pub.publish(data)
         taps = self.taps
-        if taps:
+        tapping = bool(taps)  # asked once a step
+        if tapping:
             for robot, data in zip(robots, odometry):
                 taps.write(robot.odom_pub.topic_name, data, stamp_ns)
         # /tf only while someone listens: a step costs its messages, and this is one of three.
-        if self._tf is not None and (taps or self._tf.publisher.get_subscription_count()):
+        if self._tf is not None and (tapping or self._tf.publisher.get_subscription_count()):
             data = self._tf.publish(sec, nanosec, x, y, qz, qw)
-            if taps:
+            if tapping:
                 taps.write(self._tf.publisher.topic_name, data, stamp_ns)
         if self.surroundings:
             self.surroundings.publish(stamp_ns, world, taps)
-        if taps:
+        if tapping:
             taps.step(stamp_ns, world)
         if self._odom_count % self._path_every == 0:
-            stamp = Time(nanoseconds=stamp_ns).to_msg()
             poses = (x, y, qz, qw) if each else (v.tolist() for v in (x, y, qz, qw))
             for robot, *pose in zip(robots, *poses):
-                robot.record_path(stamp, stamp_ns, *pose)
+                robot.record_path(stamp_ns, *pose)
         self._odom_count += 1
         if time.monotonic() - self._types_checked_at >= TYPE_CHECK_S:
             self._check_command_types()

@@ -30,6 +30,7 @@ from collections import deque
 import math
 import struct
 
+from builtin_interfaces.msg import Time as TimeMsg
 from geometry_msgs.msg import PoseStamped
 from geometry_msgs.msg import PoseWithCovarianceStamped
 from geometry_msgs.msg import Twist
@@ -63,10 +64,13 @@ class Robot:
     ``name`` is '' for the simulator's one robot in its own namespace.  Its state is robot
     ``index`` of the world.  The node ``sim`` is used to make the robot's topics only: a robot
     holds what it hands commands and poses to (the world, the clock, the taps, the logger),
-    not the node; ``on_placed`` is how the node hears that a robot was set down somewhere.
+    not the node.  ``on_placed`` is how the node hears that a robot was set down somewhere;
+    ``on_command(robot, data)`` is what the cmd_vel subscription calls with each command's
+    bytes: the node hands them to ``take_twist`` or ``take_stamped``, then steps if due, so
+    that nothing the robot calls calls back into the node.
     """
 
-    def __init__(self, sim, index, name, on_placed):
+    def __init__(self, sim, index, name, on_placed, on_command):
         self.world = sim.world
         self.clock = sim.clock
         self.taps = sim.taps
@@ -92,8 +96,9 @@ class Robot:
         self.cmd_type = TwistStamped if p.stamped else Twist
         # DDS says when a publisher on cmd_vel comes or goes (matched), so a second one is
         # warned about at once, with no graph query per robot per step or second.
+        self.take = self.take_stamped if p.stamped else self.take_twist
         sub = sim.create_subscription(
-            self.cmd_type, prefix + 'cmd_vel', self.on_stamped if p.stamped else self.on_twist,
+            self.cmd_type, prefix + 'cmd_vel', lambda data: on_command(self, data),
             CMD_VEL_DEPTH, raw=True,
             event_callbacks=SubscriptionEventCallbacks(matched=self._on_publishers_matched))
         self.cmd_topic = sub.topic_name
@@ -151,22 +156,16 @@ class Robot:
 
     # -- commands ---------------------------------------------------------------------------
 
-    def on_stamped(self, data):
-        """Take a geometry_msgs/TwistStamped's bytes: refuse it when stale, else follow it."""
-        self._take_stamped(data)
-        # Then the odometry step, if one is due: a backlog of commands must not hold it back.
-        self.clock.step_if_due()
-
-    def on_twist(self, data):
-        """Take a geometry_msgs/Twist's bytes and follow it; then the odometry step, if due."""
+    def take_twist(self, data):
+        """Take a geometry_msgs/Twist's bytes and follow it."""
         if self.taps:
             self.taps.write(self.cmd_topic, data, self.clock.now_ns())
         command = self._read(data, read_twist, _twist_fields)
         if command is not None:
             self.command(*command)
-        self.clock.step_if_due()
 
-    def _take_stamped(self, data):
+    def take_stamped(self, data):
+        """Take a geometry_msgs/TwistStamped's bytes: refuse it when stale, else follow it."""
         if self.taps:
             self.taps.write(self.cmd_topic, data, self.clock.now_ns())
         command = self._read(data, read_twist_stamped, _stamped_fields)
@@ -262,19 +261,24 @@ class Robot:
         else:
             self.base_frame = frame
 
-    def record_path(self, stamp, stamp_ns, x, y, qz, qw):
+    def record_path(self, stamp_ns, x, y, qz, qw):
         """Add the pose just published to the driven path; publish the path if anyone looks."""
-        self.path.append((stamp, x, y, qz, qw))
+        self.path.append((stamp_ns, x, y, qz, qw))
         taps = self.taps
         if self.path_pub.get_subscription_count() == 0 and not taps.wants_path:
             return  # converting a long path to a message is the costliest thing here
         path = Path()
-        path.header.stamp = stamp
+        path.header.stamp = _stamp(stamp_ns)
         path.header.frame_id = self.odom_frame
         path.poses = self.path.messages(self.odom_frame)
         self.path_pub.publish(path)
         if taps:
             taps.write(self.path_pub.topic_name, path, stamp_ns)
+
+
+def _stamp(stamp_ns):
+    sec, nanosec = divmod(stamp_ns, _NS)
+    return TimeMsg(sec=sec, nanosec=nanosec)
 
 
 def _twist_fields(msg):
@@ -290,7 +294,7 @@ class DrivenPath:
     """
     The poses a robot drove through, newest last, at most ``maxlen`` of them.
 
-    Kept as plain tuples (stamp, x, y, qz, qw); PoseStamped messages are made only for a path
+    Kept as plain tuples (stamp [ns], x, y, qz, qw); PoseStamped messages are made only for a path
     someone looks at, and each pose only once.
     """
 
@@ -323,10 +327,10 @@ class DrivenPath:
         """Return the path as a list of PoseStamped in frame_id."""
         new = min(self._unconverted, len(self._poses))
         for i in range(len(self._poses) - new, len(self._poses)):
-            stamp, x, y, qz, qw = self._poses[i]
+            stamp_ns, x, y, qz, qw = self._poses[i]
             pose = PoseStamped()
             pose.header.frame_id = frame_id
-            pose.header.stamp = stamp
+            pose.header.stamp = _stamp(stamp_ns)
             pose.pose.position.x = x
             pose.pose.position.y = y
             pose.pose.orientation.z = qz

@@ -128,9 +128,9 @@ class World:
     def odometry(self):
         """Return the Odometry of every robot at the latest time any is integrated up to."""
         if self.one_by_one:
-            half = [0.5 * yaw for yaw in self.yaw.tolist()]
+            half = (0.5 * self.yaw).tolist()
             return Odometry(max(self.integrated_ns.tolist()), self.x.tolist(), self.y.tolist(),
-                            [math.sin(h) for h in half], [math.cos(h) for h in half],
+                            list(map(math.sin, half)), list(map(math.cos, half)),
                             self.linear.tolist(), self.angular.tolist())
         half = 0.5 * self.yaw
         return Odometry(int(self.integrated_ns.max()), self.x, self.y, np.sin(half),

@@ -50,6 +50,11 @@ class Taps:
     def __init__(self, node, taps):
         self._node = node
         self._taps = list(taps)
+        self._changed()
+
+    def _changed(self):
+        # Whether some tap builds the path message even with no DDS subscriber (read per step).
+        self.wants_path = any(tap.wants_path for tap in self._taps)
 
     def __bool__(self):
         return bool(self._taps)
@@ -57,10 +62,6 @@ class Taps:
     def named(self, name):
         """Return the tap called name (its parameter, e.g. 'view_port'), or None."""
         return next((tap for tap in self._taps if tap.name == name), None)
-
-    @property
-    def wants_path(self):
-        return any(tap.wants_path for tap in self._taps)
 
     def write(self, topic, msg, stamp_ns):
         for tap in list(self._taps):
@@ -74,6 +75,7 @@ class Taps:
                 f'{tap.name}: {type(error).__name__}: {error}; stopped writing to it, the '
                 'simulation goes on')
             self._taps.remove(tap)
+            self._changed()
             self._close(tap)
 
     def step(self, stamp_ns, world):
@@ -85,6 +87,7 @@ class Taps:
     def close(self):
         """Close every tap (idempotent)."""
         taps, self._taps = self._taps, []
+        self._changed()
         for tap in taps:
             self._close(tap)
 
