@@ -56,8 +56,10 @@ class TimedMotion(MotionNode):
 
     def _until_next_tick_s(self):
         """Return how long this tick's command holds [s]: until the next tick fires."""
-        step_ns = self.lockstep.clock_step_ns if self.lockstep is not None else None
-        due_ns = self._tick_timer.time_until_next_call()
+        if self.lockstep is None:
+            return self.period
+        step_ns = self.lockstep.clock_step_ns
+        due_ns = self.lockstep.until_next_call_ns(self._tick_timer)
         if not step_ns or due_ns is None:
             return self.period
         # The clock reaches the next tick's time in whole steps from now (its last step's size:

@@ -60,43 +60,58 @@ def test_counts_what_the_node_publishes_and_handles(node):
 
 
 def tick_at(node):
-    """Give node a 0.1 s timer on sim time and take part; return (deliver, ticks, timer)."""
+    """
+    Give node a 0.1 s timer on sim time and take part; return (clock_at, event, ticks, lockstep).
+
+    clock_at(t_ns) hands node a /clock message as its TimeSource's subscription gets one;
+    event(times) runs the timer's event as the EventsExecutor does: rcl's call (which moves
+    rcl's schedule a period on, due or not), then the callback.
+    """
     ticks = []
     timer = node.create_timer(0.1, lambda: ticks.append(node.get_clock().now().nanoseconds))
-    take_part(node)
+    lockstep = take_part(node)
+    clock_sub = next(sub for sub in node.subscriptions if sub.msg_type is ClockMsg)
 
-    def deliver(t_ns):  # the clock at t_ns, then an event of the timer as the executor runs it
-        node.get_clock().set_ros_time_override(Time(nanoseconds=t_ns))
-        timer.callback()
-    return deliver, ticks, timer
+    def clock_at(t_ns):
+        clock_sub.callback(ClockMsg(clock=Time(nanoseconds=t_ns).to_msg()))
+
+    def event(times=1):
+        for _ in range(times):
+            timer.handle.call_timer()
+            timer.callback()
+    return clock_at, event, ticks, SimpleNamespace(timer=timer, lockstep=lockstep)
 
 
 def test_a_timer_runs_once_per_clock_time_however_often_its_event_comes(node):
-    deliver, ticks, timer = tick_at(node)
-    for _ in range(3):  # what a loaded EventsExecutor can deliver for one period
-        deliver(5_000_000_000)
+    clock_at, event, ticks, the = tick_at(node)
+    clock_at(5_000_000_000)
+    event(times=3)  # what a loaded EventsExecutor can deliver for one period
     assert ticks == [5_000_000_000]
-    # The period starts again at this time, not three periods later.
-    assert timer.time_until_next_call() == 100_000_000
+    # The next call is a period after this time, not three periods later.
+    assert the.lockstep.until_next_call_ns(the.timer) == 100_000_000
+    clock_at(5_100_000_000)
+    assert ticks == [5_000_000_000, 5_100_000_000]
 
 
 def test_a_timer_event_that_comes_between_two_due_times_runs_nothing(node):
     # A duplicate event that waited in a loaded EventsExecutor's queue while the clock moved
     # on: run, it sent a motion's command after the node had answered the step.
-    deliver, ticks, timer = tick_at(node)
-    deliver(5_000_000_000)
-    deliver(5_040_000_000)  # the stale event
+    clock_at, event, ticks, the = tick_at(node)
+    clock_at(5_000_000_000)
+    event()
+    clock_at(5_040_000_000)
+    event()  # the stale event
     assert ticks == [5_000_000_000]
     # Still due a period after its last run, not a period after the stale event.
-    assert timer.time_until_next_call() == 60_000_000
-    deliver(5_100_000_000)
+    assert the.lockstep.until_next_call_ns(the.timer) == 60_000_000
+    clock_at(5_100_000_000)
+    assert not the.timer.is_ready()  # rcl's schedule: a period ahead
     assert ticks == [5_000_000_000, 5_100_000_000]
-    assert timer.timer_period_ns == 100_000_000
 
 
-def test_a_period_off_the_clock_steps_keeps_rcls_schedule_through_duplicate_events(node):
+def test_a_period_off_the_clock_steps_keeps_its_schedule_through_duplicate_events(node):
     # 125 ms on 20 ms steps: due at 5.125, 5.25, 5.375 ..., run at the first step at or after
-    # each (5.14, 5.26, 5.38, 5.5, 5.64), duplicates or not.  Put back a period after each run
+    # each (5.14, 5.26, 5.38, 5.5, 5.64), duplicates or not.  Run a period after each run
     # instead, the schedule drifted a step late every period (5.14, 5.28, 5.42 ...), and a
     # timed motion at 8 Hz ended 0.36 deg off.
     clock = node.get_clock()
@@ -104,8 +119,9 @@ def test_a_period_off_the_clock_steps_keeps_rcls_schedule_through_duplicate_even
     ticks = []
     timer = node.create_timer(0.125, lambda: ticks.append(clock.now().nanoseconds))
     take_part(node)
+    clock_sub = next(sub for sub in node.subscriptions if sub.msg_type is ClockMsg)
     for t_ns in range(5_020_000_000, 5_660_000_000, 20_000_000):
-        clock.set_ros_time_override(Time(nanoseconds=t_ns))
+        clock_sub.callback(ClockMsg(clock=Time(nanoseconds=t_ns).to_msg()))
         while timer.is_ready():  # an event, and a duplicate of it, as a loaded executor runs
             for _ in range(2):
                 timer.handle.call_timer()
@@ -113,55 +129,51 @@ def test_a_period_off_the_clock_steps_keeps_rcls_schedule_through_duplicate_even
     assert ticks == [5_140_000_000, 5_260_000_000, 5_380_000_000, 5_500_000_000, 5_640_000_000]
 
 
-def test_duplicate_events_put_the_schedule_back_once_per_clock_time(node):
+def test_duplicate_events_never_move_the_schedule(node):
     # On a lossy link a loaded EventsExecutor ran one motion's tick event thousands of times
-    # at one clock time, each run moving rcl's schedule a period on before the callback.  Put
-    # back after every one, each reset queued another update of the executor's timers, which
-    # queued the event again once the clock moved: the duplicates doubled at every step until
-    # the node did nothing else and the simulator went on without it.
-    _, ticks, timer = tick_at(node)
-    clock = node.get_clock()
-    resets = []
-    reset = timer.reset
-    timer.reset = lambda: (resets.append(clock.now().nanoseconds), reset())
-
-    def event(times=1):  # as the executor runs one: rcl's call, then the callback
-        for _ in range(times):
-            timer.handle.call_timer()
-            timer.callback()
-
+    # at one clock time, each run moving rcl's schedule a period on before the callback.
+    # Each reset of the schedule queued another update of the executor's timers, which queued
+    # the event again once the clock moved: the duplicates doubled at every step.  The
+    # lockstep moves no schedule; it runs the calls rcl's schedule skips.
+    clock_at, event, ticks, the = tick_at(node)
+    timer = the.timer
+    moved = []
+    timer.reset = lambda: moved.append('reset')
     for t_ns in (5_000_000_000, 5_100_000_000, 5_200_000_000):
-        clock.set_ros_time_override(Time(nanoseconds=t_ns))
-        assert timer.is_ready()  # due now, however far the duplicates had moved it
-        event(times=10)
+        clock_at(t_ns)
+        if timer.is_ready():
+            event(times=10)
         assert ticks[-1] == t_ns
-        assert timer.time_until_next_call() >= 100_000_000
     assert ticks == [5_000_000_000, 5_100_000_000, 5_200_000_000]
-    # Once at each time's first duplicate, once more before the clock moved on.
-    assert resets == [5_000_000_000, 5_000_000_000, 5_100_000_000, 5_100_000_000,
-                      5_200_000_000]
-    clock.set_ros_time_override(Time(nanoseconds=5_250_000_000))
-    assert timer.time_until_next_call() == 50_000_000
+    assert moved == [] and timer.timer_period_ns == 100_000_000
+    clock_at(5_250_000_000)
+    assert the.lockstep.until_next_call_ns(timer) == 50_000_000
+    assert timer.time_until_next_call() > 50_000_000  # rcl's own: whole periods ahead
 
 
 def test_a_timer_runs_at_once_after_the_clock_went_back(node):
     # A replayed or restarted /clock: the timer's schedule starts afresh, not 90 s from now.
-    deliver, ticks, _ = tick_at(node)
-    deliver(100_000_000_000)
-    deliver(10_000_000_000)
+    clock_at, event, ticks, _ = tick_at(node)
+    clock_at(100_000_000_000)
+    event()
+    clock_at(10_000_000_000)
+    event()
     assert ticks == [100_000_000_000, 10_000_000_000]
 
 
 def test_a_late_event_never_wakes_a_canceled_timer(node):
     # A motion cancels its tick when it finishes; an event still queued for it must not
-    # start the tick again (putting a schedule back resets the timer, which un-cancels it).
-    deliver, ticks, timer = tick_at(node)
-    deliver(5_000_000_000)
-    timer.cancel()
-    deliver(5_040_000_000)
-    deliver(5_000_000_000)
+    # start the tick again, nor may the clock.
+    clock_at, event, ticks, the = tick_at(node)
+    clock_at(5_000_000_000)
+    event()
+    the.timer.cancel()
+    clock_at(5_040_000_000)
+    the.timer.callback()  # queued before the cancel (rcl's call of a canceled timer fails)
+    clock_at(5_200_000_000)
+    the.timer.callback()
     assert ticks == [5_000_000_000]
-    assert timer.is_canceled()
+    assert the.timer.is_canceled()
 
 
 def test_take_part_needs_sim_time(ros_context):

@@ -15,19 +15,17 @@
 """
 The rclpy behaviours that sim_diffdrive/lockstep/counter.py relies on, pinned one by one.
 
-MessageCounter wraps an existing node's entities by rebinding their attributes, and puts a
-sim-time timer's schedule back after the EventsExecutor's duplicate timer events; nothing in
-rclpy's API promises what that needs.  These tests pin it as Jazzy's rclpy 7.1 behaves (the
-docs name 7.1.6; checked with the venv's 7.1.5 wheels), raw rclpy only, no counter: each is
-named for one behaviour, so an rclpy update that changes one fails here by name rather than
-somewhere in the lockstep.
+MessageCounter wraps an existing node's entities by rebinding their attributes, and runs the
+calls of a sim-time timer that the EventsExecutor's duplicate timer events made rcl skip;
+nothing in rclpy's API promises what that needs.  These tests pin it as Jazzy's rclpy 7.1
+behaves (the docs name 7.1.6; checked with the venv's 7.1.5 wheels), raw rclpy only, no
+counter: each is named for one behaviour, so an rclpy update that changes one fails here by
+name rather than somewhere in the lockstep.
 """
 
 import time
 
 import pytest
-from rclpy.clock import JumpThreshold
-from rclpy.duration import Duration
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
@@ -167,56 +165,6 @@ def test_rcl_has_moved_a_sim_time_timers_schedule_on_when_its_callback_runs(
         node.destroy_node()
 
 
-def test_a_jump_pre_callback_runs_before_each_change_of_the_sim_clock(ros_context):
-    # _put_back_later: a put-back left for later is done just before the clock next changes.
-    node = _sim_time_node(ros_context, 'jumped')
-    try:
-        clock = node.get_clock()
-        seen = []
-        handle = clock.create_jump_callback(
-            JumpThreshold(min_forward=Duration(nanoseconds=1),
-                          min_backward=Duration(nanoseconds=-1), on_clock_change=True),
-            pre_callback=lambda: seen.append(clock.now().nanoseconds))
-        for t_ns in (_NS, _NS, 2 * _NS, _NS):
-            clock.set_ros_time_override(Time(nanoseconds=t_ns))
-        assert seen == [0, _NS, 2 * _NS]  # the time before each change; none for no change
-        handle.unregister()
-    finally:
-        node.destroy_node()
-
-
-def test_timer_reset_on_sim_time_is_a_period_from_now_and_a_period_write_moves_no_call(
-        ros_context):
-    # _next_call_at(timer, now, due): write the period due - now, reset, write the period back.
-    node = _sim_time_node(ros_context, 'reset')
-    executor = EventsExecutor(context=ros_context)
-    try:
-        clock = node.get_clock()
-        clock.set_ros_time_override(Time(nanoseconds=5 * _NS))
-        runs = []
-        timer = node.create_timer(1.0, lambda: runs.append(clock.now().nanoseconds))
-        clock.set_ros_time_override(Time(nanoseconds=5_250_000_000))
-        timer.reset()
-        assert timer.time_until_next_call() == _NS  # due at 6.25 s, not 6 s
-        timer.timer_period_ns = 500_000_000
-        assert timer.time_until_next_call() == _NS  # writing the period moves no call
-        timer.reset()
-        assert timer.time_until_next_call() == 500_000_000  # due at 5.75 s
-        timer.timer_period_ns = _NS
-        assert timer.time_until_next_call() == 500_000_000
-        assert timer.timer_period_ns == _NS
-        executor.add_node(node)
-        _spin_for(executor, 0.1)
-        assert runs == []
-        clock.set_ros_time_override(Time(nanoseconds=5_750_000_000))
-        assert _spin_until(executor, lambda: runs), 'the timer did not run when put back due'
-        assert runs == [5_750_000_000]
-        assert timer.time_until_next_call() == _NS  # then a whole (restored) period on
-    finally:
-        executor.shutdown()
-        node.destroy_node()
-
-
 def test_the_events_executor_duplicates_a_sim_time_timer_event(ros_context):
     # Its timers manager queues a timer's event for every update of its timers that finds the
     # timer due, and runs rcl's call for each event, due or not.  Two clock updates queued
@@ -237,7 +185,7 @@ def test_the_events_executor_duplicates_a_sim_time_timer_event(ros_context):
         _spin_for(executor, 0.3)
         assert runs, 'the due timer never ran'
         assert runs != [_NS + 1], ("rclpy no longer duplicates timer events: counter.py's "
-                                   'put-back (_next_call_at, _put_back_later) can go')
+                                   '_SimTimeCalls.catch_up can go')
         assert runs == [_NS + 1, _NS + 1]
         assert timer.time_until_next_call() == 2 * _NS - 1  # due at 3 s: two periods on
     finally:

@@ -28,18 +28,16 @@ Being the one place that wraps rclpy's objects, it relies on rclpy behaviours th
 promises: a subscription's (a raw one's too) and a timer's ``callback`` attribute is read at
 dispatch, under both executors; a ``publish`` set on a publisher shadows the method, and
 ``node.publishers`` holds the objects created; the TimeSource's /clock subscription is one of
-``node.subscriptions``; when a sim-time timer's callback runs, rcl has moved its schedule on;
-``reset()`` puts the next call a period after now, and writing ``timer_period_ns`` moves no
-call; a jump pre-callback runs before each change of the clock; and the EventsExecutor runs a
-sim-time timer's event more than once for one due time (why the schedule is put back).
-test/test_rclpy_behaviour.py pins each, so an rclpy update that changes one fails there.
+``node.subscriptions``, and its callback has set the clock when it returns; when a sim-time
+timer's callback runs, rcl has moved its schedule on; and the EventsExecutor runs a sim-time
+timer's event more than once for one due time, each run moving rcl's schedule a whole period
+on (_SimTimeCalls).  test/test_rclpy_behaviour.py pins each, so an rclpy update that changes
+one fails there.  No rcl schedule is moved here: no ``reset()``, no period written.
 """
 
 import struct
 
 from rclpy.clock import ClockType
-from rclpy.clock import JumpThreshold
-from rclpy.duration import Duration
 from rclpy.serialization import deserialize_message
 from rosgraph_msgs.msg import Clock as ClockMsg
 from sim_diffdrive.cdr import header_stamp_ns
@@ -95,10 +93,7 @@ class MessageCounter:
         # its sender has the next step already, so the /clock of that step is on its way here.
         self.clock_step_ns = None
         self.heard_offset_ns = None
-        # Sim-time timers that a duplicate event left a period (or more) ahead, with the time
-        # each is due, put back just before their clock next changes (_put_back_ahead).
-        self._ahead = {}
-        self._jump_handles = {}  # clock -> the JumpHandle that calls _put_back_ahead
+        self._sim_time_calls = {}  # sim-time timer -> its _SimTimeCalls
         self.wrap_new()
 
     def wrap_new(self):
@@ -141,6 +136,8 @@ class MessageCounter:
                 self.clock_step_ns = clock_ns - self.clock_ns
             self.clock_ns = clock_ns
             self.clock_messages += 1
+            if self._sim_time_calls:
+                self._catch_up()
             self._after()
         return counted
 
@@ -166,67 +163,24 @@ class MessageCounter:
                 callback(*args)
                 self._after()
             return counted
-        fired_at = [None]
-        due_at = [None]  # when rcl's schedule next had it due, at its last real call [ns]
-        put_back_at = [None]
+        calls = self._sim_time_calls[timer] = _SimTimeCalls(timer, callback, self._after)
+        return calls.on_event
 
-        def on_schedule(*args):
-            # rclpy's EventsExecutor queues a timer's event once for every update of its
-            # timers that finds it due, so a loaded executor can run it several times for one
-            # due time (rclcpp #2771 has the same bug); each run also moves rcl's schedule a
-            # period further.  Run the callback only when due: a second event at the same
-            # simulated time would run it twice, and one that waited in the queue until the
-            # clock had moved on would run it between two due times, after this node had
-            # answered the step.  Put the schedule back after any other event, but at most
-            # once per clock time: each reset makes the executor update its timers once more,
-            # and on a lossy link, where the next clock came while these updates were still
-            # queued, each of them queued the timer again at the new time: one reset per
-            # duplicate doubled the duplicates at every step until the node did nothing else.
-            # So the first duplicate at a time puts it back at once (the update that causes is
-            # most often done before the clock moves); later ones leave the timer ahead until
-            # just before its clock changes (_put_back_ahead).
-            # (A clock that went back, replayed or restarted, starts the schedule afresh.)  The
-            # schedule put back is rcl's: due times a period apart from the first, each run at
-            # the first clock time at or after it (not a period after the run, which drifts
-            # by up to a clock step each period when the period is no whole number of steps).
-            if timer.is_canceled():
-                return  # an event queued before the cancel: resetting would un-cancel it
-            now_ns = timer.clock.now().nanoseconds
-            if fired_at[0] is not None and fired_at[0] <= now_ns < due_at[0]:
-                due_ns = due_at[0]
-                if put_back_at[0] != now_ns:
-                    put_back_at[0] = now_ns
-                    _next_call_at(timer, now_ns, due_ns)
-                else:
-                    self._put_back_later(timer, due_ns)
-                return
-            fired_at[0] = now_ns
-            # rcl moved the schedule on before this event ran.  Due now or before if it fell a
-            # period behind (or nothing called rcl): then a period from now, once at a time.
-            until_ns = timer.time_until_next_call()
-            due_at[0] = now_ns + (until_ns if until_ns and until_ns > 0
-                                  else timer.timer_period_ns)
-            callback(*args)
-            self._after()
-        return on_schedule
+    def until_next_call_ns(self, timer):
+        """Return the simulated time until timer's next call [ns], as this counter runs it."""
+        calls = self._sim_time_calls.get(timer)
+        if calls is None or calls.due_ns is None:
+            return timer.time_until_next_call()
+        return max(0, calls.due_ns - timer.clock.now().nanoseconds)
 
-    def _put_back_later(self, timer, due_ns):
-        """Put timer's schedule back to due_ns just before its clock changes."""
-        self._ahead[timer] = due_ns
-        clock = timer.clock
-        if clock not in self._jump_handles:
-            self._jump_handles[clock] = clock.create_jump_callback(
-                JumpThreshold(min_forward=Duration(nanoseconds=1),
-                              min_backward=Duration(nanoseconds=-1), on_clock_change=True),
-                pre_callback=self._put_back_ahead)
-
-    def _put_back_ahead(self):
-        ahead, self._ahead = self._ahead, {}
-        for timer, due_ns in ahead.items():
-            if timer in self.node.timers and not timer.is_canceled():  # not destroyed since
-                now_ns = timer.clock.now().nanoseconds
-                if now_ns < due_ns:
-                    _next_call_at(timer, now_ns, due_ns)
+    def _catch_up(self):
+        """Run the calls that duplicate events made rcl skip, now due (after each /clock)."""
+        timers = self.node.timers
+        for timer, calls in list(self._sim_time_calls.items()):
+            if timer in timers:
+                calls.catch_up()
+            else:  # destroyed
+                del self._sim_time_calls[timer]
 
     def _counted_publish(self, publish, topic, stamp_ns):
         def counted(msg):
@@ -239,22 +193,57 @@ class MessageCounter:
         return counted
 
 
-def _next_call_at(timer, now_ns, due_ns):
+class _SimTimeCalls:
     """
-    Make timer's next call due_ns (> now_ns) and keep its period (rclpy has no such call).
+    One sim-time timer's calls: each run once, at the first clock time at or after it is due.
 
-    A reset puts the next call a period from now: due_ns itself for a duplicate at the clock
-    time of a run that fell on its due time.  Any other due_ns (a run late for its due time, a
-    put-back at a later clock time) needs a period of due_ns - now_ns for the reset, written
-    back after it (writing the period moves no call).
+    rclpy's EventsExecutor queues a timer's event once for every update of its timers that
+    finds it due, so a loaded executor runs the event several times for one due time (rclcpp
+    #2771 has the same bug), and each run moves rcl's schedule a period on.  ``on_event`` runs
+    the callback only when it is due: a second event at the same clock time would run it
+    twice, and one that waited in the queue until the clock had moved on would run it between
+    two due times, after the node had answered its step.  rcl's schedule is left as the
+    duplicates put it, whole periods ahead, and ``catch_up`` (after each /clock) runs each
+    call it skips, at its due time.  Nothing moves rcl's schedule, so nothing makes its timers
+    manager queue the event again (on a lossy link each such reset doubled the duplicates).
     """
-    period_ns = timer.timer_period_ns
-    if due_ns - now_ns == period_ns:
-        timer.reset()
-        return
-    timer.timer_period_ns = due_ns - now_ns
-    timer.reset()  # the next call one (temporary) period from now
-    timer.timer_period_ns = period_ns
+
+    def __init__(self, timer, callback, after):
+        self.timer = timer
+        self._callback = callback
+        self._after = after
+        self.fired_ns = None  # the clock time of the last run
+        self.due_ns = None  # the next call's due time: rcl's, or before it after duplicates
+
+    def on_event(self, *args):
+        timer = self.timer
+        if timer.is_canceled():
+            return  # an event queued before the cancel
+        now_ns = timer.clock.now().nanoseconds
+        if self.fired_ns is not None and self.fired_ns <= now_ns < self.due_ns:
+            return  # a duplicate (rcl moved its schedule a period on: catch_up covers it)
+        # rcl moved its schedule on before this event ran, past now if it fell behind (a
+        # clock that went back, replayed or restarted, starts it afresh).
+        until_ns = timer.time_until_next_call()
+        self.fired_ns = now_ns
+        self.due_ns = now_ns + (until_ns if until_ns and until_ns > 0 else timer.timer_period_ns)
+        self._callback(*args)
+        self._after()
+
+    def catch_up(self):
+        """Run the call due by now if rcl's schedule, ahead after duplicates, skips it."""
+        timer = self.timer
+        if self.due_ns is None or timer.is_canceled():
+            return
+        now_ns = timer.clock.now().nanoseconds
+        if now_ns < self.fired_ns:
+            self.fired_ns = self.due_ns = None  # the clock went back: rcl's schedule holds
+        elif self.due_ns <= now_ns and timer.time_until_next_call() > 0:
+            # Due: the next due time a whole number of periods on, after now (as rcl does).
+            period_ns = timer.timer_period_ns
+            self.fired_ns = now_ns
+            self.due_ns += period_ns * (1 + (now_ns - self.due_ns) // period_ns)
+            self._callback()  # the /clock callback's listeners run next
 
 
 def _stamp_reader(msg_type):

@@ -133,6 +133,15 @@ class Participant:
         """
         return self.counter.clock_step_ns
 
+    def until_next_call_ns(self, timer):
+        """
+        Return the simulated time until the next call of timer, one of the node's [ns].
+
+        As the lockstep runs it: after duplicate events of rclpy's EventsExecutor rcl's own
+        schedule (``timer.time_until_next_call()``) may lie whole periods ahead (counter.py).
+        """
+        return self.counter.until_next_call_ns(timer)
+
     @property
     def owner_present(self):
         """Whether a simulator that steps in lockstep listens for answers."""
@@ -327,6 +336,10 @@ class Member:
     def counted_on(self, topic):
         """Return whether some node that handles topic is counted (see Participant)."""
         return self.participant.counted_on(topic)
+
+    def until_next_call_ns(self, timer):
+        """Return the simulated time until the next call of timer, one of this node's [ns]."""
+        return self.counter.until_next_call_ns(timer)
 
     def leave(self, ack_timeout=0.5):
         """
