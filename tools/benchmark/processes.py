@@ -19,12 +19,10 @@ Rows 7-12: the executables as a user starts them, over DDS, watched from this pr
 """
 
 import itertools
-import json
 import math
 import os
 import random
 import re
-import subprocess
 import sys
 import time
 
@@ -33,6 +31,8 @@ from benchmark.core import Row
 from benchmark.core import row
 from benchmark.one_process import one_process
 from benchmark.originals import closure
+from benchmark.round_trips import bare_step
+from benchmark.round_trips import ping_pong
 import numpy as np
 from rclpy.clock import Clock
 from rclpy.clock import ClockType
@@ -111,47 +111,6 @@ try:
 except KeyboardInterrupt:
     pass
 """
-# Row 7's reference: two processes that only ping-pong one raw std_msgs/UInt64 (rclpy's
-# serialized publish, raw=True subscriptions, EventsExecutor spin_once loops as the executables
-# spin, the package's DDS profile).  'ping' round_trips warm_ups prints its round trips [ns].
-PING_PONG = """
-import json, sys, time
-import rclpy
-from rclpy.experimental import EventsExecutor
-from rclpy.serialization import serialize_message
-from sim_diffdrive.dds_profile import use_package_profile
-from std_msgs.msg import UInt64
-use_package_profile()  # before the first node, as runtime.run() does for the executables
-rclpy.init()
-role, executor, heard = sys.argv[1], EventsExecutor(), []
-node = rclpy.create_node(f'bench_{role}', enable_rosout=False)
-executor.add_node(node)
-out, back = ('bench_ping', 'bench_pong')[::1 if role == 'ping' else -1]
-publisher = node.create_publisher(UInt64, out, 10)
-node.create_subscription(UInt64, back, heard.append if role == 'ping' else publisher.publish,
-                         10, raw=True)  # pong: each ping's bytes straight back
-try:
-    while role == 'pong' and rclpy.ok():
-        executor.spin_once(timeout_sec=0.1)
-    if role == 'ping':
-        due, times, warm_ups = time.monotonic() + 30.0, [], int(sys.argv[3])
-        while not publisher.get_subscription_count() or not node.count_publishers(back):
-            if time.monotonic() > due:
-                sys.exit('no pong process matched')
-            executor.spin_once(timeout_sec=0.01)
-        for k in range(warm_ups + int(sys.argv[2])):
-            data = serialize_message(UInt64(data=k))
-            sent = time.perf_counter_ns()
-            publisher.publish(data)
-            while not heard:  # (a lost answer: ping_pong's wait ends it)
-                executor.spin_once(timeout_sec=0.1)
-            times.append(time.perf_counter_ns() - sent)
-            if heard.pop() != data or heard:
-                sys.exit(f'round trip {k}: another answer')
-        print('round trips ns:', json.dumps(times[warm_ups:]), flush=True)
-except KeyboardInterrupt:
-    pass
-"""
 LEFT = re.compile(r'Lockstep: \S+ left at \S+ s \((\d+) answers in (\d+) steps\)')
 DONE = re.compile(r'Done in ([0-9.]+) s \(([0-9.]+) s wall\).* error ([0-9.]+) mm, ([0-9.]+) deg')
 
@@ -208,23 +167,6 @@ def motion_processes(run):
                 for motion in run.sizes.process_motions}
 
 
-def ping_pong(run):
-    """Return the round trips [us] of PING_PONG's two processes (core.SIZES 'ping_pongs')."""
-    round_trips, warm_ups = run.sizes.ping_pongs
-    pong = run.start(sys.executable, '-c', PING_PONG, 'pong')
-    ping = run.start(sys.executable, '-c', PING_PONG, 'ping', str(round_trips), str(warm_ups))
-    try:
-        ping.wait(60.0 + 0.05 * (round_trips + warm_ups))
-    except subprocess.TimeoutExpired:
-        pass  # stopped below, its log raised
-    finally:
-        out, _ = run.stop(ping), run.stop(pong)
-    lines = [line for line in out.splitlines() if line.startswith('round trips ns: ')]
-    if ping.returncode or not lines:
-        raise RuntimeError(f'the ping-pong processes failed ({ping.returncode}):\n{out}')
-    return [ns / 1000.0 for ns in json.loads(lines[0][len('round trips ns: '):])]
-
-
 @row('processes')
 def rtf_processes(run):
     results = run.once(motion_processes)
@@ -242,6 +184,7 @@ def rtf_processes(run):
                for m, runs in results.items()}
     round_trips = run.once(ping_pong)  # beside it: two processes' round trips [us]
     round_trip_us, p90_us = np.median(round_trips), np.percentile(round_trips, 90)
+    bare_us = np.median(run.once(bare_step))  # and a step's four messages alone
     # A step is 20 ms of simulated time: its wall cost at the slowest motion's factor.
     step_us = 2e4 / min((x for x in rtf.values() if math.isfinite(x)), default=math.nan)
     ratio = step_us / round_trip_us
@@ -250,8 +193,9 @@ def rtf_processes(run):
         ', '.join(f'{m} {core.fmt_x(x)}' for m, x in rtf.items()) + '; identical: '
         + {True: 'yes', False: 'no', None: '- (one run)'}[identical]
         + (f'; {len(failed)} runs failed' if failed else ''),
-        f'clock set to {run.rtf:g}x; ping-pong round trip {round_trip_us:.0f} us; a step costs '
-        f'{step_us:.0f} us = {ratio:.1f}x',
+        f"clock set to {run.rtf:g}x; ping-pong round trip {round_trip_us:.0f} us; a step's "
+        f'four messages alone {bare_us:.0f} us; a step costs {step_us:.0f} us = {ratio:.1f}x '
+        f'the round trip, {step_us / bare_us:.1f}x its messages',
         f'unicycle_sim (publish_clock, real_time_factor {run.rtf:g}, 50 Hz) and the motion '
         'executables, a fresh simulator each run; sim and wall s of the movement on odometry. '
         "In lockstep: one round trip per 20 ms step; answers per step (the simulator's "
@@ -259,14 +203,17 @@ def rtf_processes(run):
         + '. Ping-pong: two Python processes that only bounce one raw std_msgs/UInt64 '
         "(rclpy's serialized publish, raw subscriptions, EventsExecutor spin_once loops, the "
         f"package's DDS profile): median of {len(round_trips)} round trips after "
-        f"{run.sizes.ping_pongs[1]} warm-up (p90 {p90_us:.0f} us); a step's cost: 20 ms of "
-        f"simulated time at the slowest motion's factor. Worst error {worst_mm:.3g} mm, "
-        f'{worst_deg:.3g} deg.' + ''.join(f' Failed: {f}.' for f in failed),
+        f"{run.sizes.ping_pongs[1]} warm-up (p90 {p90_us:.0f} us). A step's messages alone: "
+        'one process publishes odometry bytes and a /clock, the other answers from a 50 Hz '
+        "timer on that clock with a Twist and an answer, as many steps (median). A step's "
+        "cost: 20 ms of simulated time at the slowest motion's factor. Worst error "
+        f'{worst_mm:.3g} mm, {worst_deg:.3g} deg.' + ''.join(f' Failed: {f}.' for f in failed),
         f'>= {core.TARGET_RTF_PROCESSES:g}x',
         not failed and min(rtf.values()) >= core.TARGET_RTF_PROCESSES,
         {'rtf': rtf, 'identical': identical, 'errors_mm_deg': errors, 'failures': failed,
          'answers_per_step': answers, 'round_trip_us': float(round_trip_us),
-         'round_trip_p90_us': float(p90_us), 'step_us': step_us, 'step_over_round_trip': ratio,
+         'round_trip_p90_us': float(p90_us), 'bare_step_us': float(bare_us),
+         'step_us': step_us, 'step_over_round_trip': ratio,
          'failure_logs': [core.tail(r['log']) for rs in results.values() for r in rs
                           if r['exit']]})
 
