@@ -190,7 +190,7 @@ class MotionNode(Node):
 
     def publish_command(self, linear, angular):
         linear, angular = float(linear), float(angular)
-        if self.params.stamped:
+        if self.cmd_pub.msg_type is TwistStamped:  # stamped:=true
             msg = TwistStamped()
             msg.twist.linear.x = linear
             msg.twist.angular.z = angular

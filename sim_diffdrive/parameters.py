@@ -28,7 +28,6 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 import math
 import re
-from types import SimpleNamespace
 
 from rcl_interfaces.msg import FloatingPointRange
 from rcl_interfaces.msg import IntegerRange
@@ -160,13 +159,12 @@ class Spec:
 
 def declare(node, specs, on_change=None):
     """
-    Declare every Spec on node and return the checked values as attributes.
+    Declare every Spec on node and return its Values: the checked values as attributes.
 
     Raises ParameterError naming the first unusable value.  A live parameter set at runtime is
-    checked by its Spec, stored converted, written to the returned values and passed to
-    ``on_change(name, value)``.  rclpy's use_sim_time is made read-only (_clock_chosen_at_start).
+    checked by its Spec, stored converted and passed to ``on_change(name, value)``.  rclpy's
+    use_sim_time is made read-only (_clock_chosen_at_start).
     """
-    values = SimpleNamespace()
     for spec in specs:
         # Declared without its range first, so that the check below (not rclpy's) words the
         # refusal; the full descriptor then guards later changes and shows in introspection.
@@ -184,12 +182,30 @@ def declare(node, specs, on_change=None):
             node.set_parameters([Parameter(spec.name, value=value)])
         if descriptor.floating_point_range or descriptor.integer_range or descriptor.read_only:
             node.set_descriptor(spec.name, descriptor)
-        setattr(values, spec.name, value)
     live = {spec.name: spec for spec in specs if spec.live}
     if live:
-        _LiveParameters(node, live, values, on_change).attach()
+        _LiveParameters(node, live, on_change).attach()
     _clock_chosen_at_start(node)
-    return values
+    return Values(node, specs)
+
+
+class Values:
+    """
+    A node's declared parameters as attributes (``params.rate_hz``), read from the node.
+
+    rclpy holds each value, stored converted by declare() and by every live set, so it has one
+    owner; an attribute is that value through its Spec (an unset list reads as [], not None).
+    """
+
+    def __init__(self, node, specs):
+        self._get = node.get_parameter
+        self._specs = {spec.name: spec for spec in specs}
+
+    def __getattr__(self, name):
+        spec = self.__dict__['_specs'].get(name)
+        if spec is None:
+            raise AttributeError(f'no parameter {name!r} was declared')
+        return spec.check(self._get(name).value)
 
 
 def _clock_chosen_at_start(node):
@@ -220,10 +236,9 @@ class _LiveParameters:
     refuses the set with the noted words.
     """
 
-    def __init__(self, node, specs, values, on_change):
+    def __init__(self, node, specs, on_change):
         self.node = node
         self.specs = specs
-        self.values = values
         self.on_change = on_change
         self._refused = {}  # parameter name -> refusal, for the set under way
 
@@ -262,7 +277,6 @@ class _LiveParameters:
             if spec is None:
                 continue
             value = spec.check(parameter.value)
-            setattr(self.values, spec.name, value)
             if self.on_change is not None:
                 self.on_change(spec.name, value)
             shown = repr(value) if isinstance(value, str) else value
