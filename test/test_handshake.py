@@ -247,6 +247,26 @@ def test_a_goodbye_holds_the_clock_until_its_last_message_is_handled(joined):
     assert ledger.waiting_for(owner.now) == []
 
 
+def test_a_member_gone_after_its_goodbye_never_covers_another_members_command(joined):
+    ledger, owner = joined
+    ledger.receive(motion(owner.now, 0, 1, owner.now, pid='n'), owner.now)
+    assert ledger.waiting_for(owner.now) == []
+    assert ledger.synced() == {'sim', 'm', 'n'}
+    owner.step()
+    ledger.receive(motion(owner.now, 0, 2, owner.now, pid='n'), owner.now)
+    ledger.receive(Answer('m', '/motion', owner.now, {CMD: 2}, {ODOM: 2}, leaving=True),
+                   owner.now)
+    owner.hear_command()
+    owner.hear_command()
+    assert ledger.waiting_for(owner.now) == []
+    assert set(ledger.members) == {'sim', 'n'}
+    # Within the same step, the other member's command is owed until it is handled.
+    ledger.receive(motion(owner.now, 1, 2, owner.now, pid='n'), owner.now)
+    assert ledger.waiting_for(owner.now) == [('sim', CMD, 1)]
+    owner.hear_command()
+    assert ledger.waiting_for(owner.now) == []
+
+
 def test_a_last_stop_heard_before_the_goodbye_that_claims_it_is_not_owed(joined):
     # odom_out_and_back ends beside a slow participant (a CI run, and 3 in 86 runs of the
     # lockstep tests with four workers): at its last tick it publishes a stop and answers;

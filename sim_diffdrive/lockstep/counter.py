@@ -19,10 +19,10 @@ Both sides of the handshake need the same numbers: how many messages a node publ
 handled per topic (and the newest header stamp of each), how many /clock messages it took.
 A participant (participant.py) sends them to the simulator in its answers; the simulator
 (owner.py) counts its own traffic the same way; the in-process engine behind SimGraph
-(testing/engine.py) sums them over the nodes of a graph.  The counts come from wrapping the
-node's subscription callbacks, timer callbacks and ``publish`` methods, so the node's code
-does not change.  ``MessageCounter.of(node, ...)`` is the only place that wraps: a node has
-one counter however many users it has, each adding itself to ``listeners``.
+(testing/engine.py) gives the ledger each node's counts as its answer.  The counts come from
+wrapping the node's subscription callbacks, timer callbacks and ``publish`` methods, so the
+node's code does not change.  ``MessageCounter.of(node, ...)`` is the only place that wraps: a
+node has one counter however many users it has, each adding itself to ``listeners``.
 
 Being the one place that wraps rclpy's objects, it relies on rclpy behaviours that no API
 promises: a subscription's (a raw one's too) and a timer's ``callback`` attribute is read at

@@ -24,8 +24,9 @@ carries cumulative counts: how many messages the node has published on each topi
 it has handled on each topic it subscribes to.  Counts, not per-step flags, because DDS orders
 messages per writer only: an answer may overtake the command it covers, so the owner does not
 trust the answer alone but waits until every message that a member *sent* has been *heard* by
-every member subscribed to that topic (the in-process ``Lockstep.settled()`` rule, spread over
-processes).  A step is settled when every member has answered it and nothing is owed.
+every member subscribed to that topic.  A step is settled when every member has answered it
+and nothing is owed.  The in-process graph (testing/engine.py) keeps the same ledger, its
+nodes' answers their counters' live counts.
 
 Only members count.  A subscriber that does not take part (a logger, a recorder) is never
 waited for; a publisher that does not take part (a teleop) only adds messages a member hears
@@ -251,18 +252,20 @@ class StepLedger:
         latest stamp tells (see waiting_for), and a count could not, since a burst of messages
         may share one stamp and a member's answer may be older than what another has heard.
         """
+        return self._owed(self._latest_stamps())
+
+    def _owed(self, stamps):
         sent = self._sent_since_join()
-        stamped = self._latest_stamps()
         debts = {}
         for pid, member in self.members.items():
             if not member.synced or member.leaving:
                 continue
+            offset = member.offset
             for topic, heard in member.answer.heard.items():
-                if topic in stamped:
-                    continue
-                due = sent.get(topic, 0) - heard - member.offset.get(topic, 0)
-                if due:
-                    debts[(pid, topic)] = due
+                if topic not in stamps:
+                    due = sent.get(topic, 0) - heard - offset.get(topic, 0)
+                    if due:
+                        debts[(pid, topic)] = due
         return debts
 
     def waiting_for(self, now_ns):
@@ -286,32 +289,39 @@ class StepLedger:
                    if self._unanswered(member, now_ns)]
         if missing:
             return missing
-        reasons = []
-        caught_up = []
+        # Asked after every callback in process (testing/engine.py): one pass over members.
+        reasons, caught_up, leaving = [], [], []
         stamps = self._latest_stamps()
         for pid, member in self.members.items():
             if member.leaving:
+                leaving.append(pid)
                 continue
             answer = member.answer
             floor = member.stamp_floor
             behind = [(pid, topic, 0) for topic, stamp in answer.heard_stamp.items()
                       if max(stamp, floor.get(topic, stamp)) < stamps.get(topic, stamp)]
             if member.synced:
-                reasons.extend(behind)
+                reasons += behind
             elif not behind and answer.step_ns >= now_ns:
                 caught_up.append(member)
-        reasons.extend((pid, topic, due) for (pid, topic), due in self.owed().items()
-                       if due > 0)
+        reasons += [(pid, topic, due) for (pid, topic), due in self._owed(stamps).items()
+                    if due > 0]
         if not reasons:
             for member in caught_up:
                 member.synced = True
                 self.version += 1
                 member.offset = {}
                 self._settle_offsets(member)
-            # What the leaving sent has been handled: now they go.
-            for pid in [pid for pid, member in self.members.items() if member.leaving]:
-                del self.members[pid]
+            # What the leaving sent has been handled: now they go, and their counts with them
+            # (else they would cover what a member sends until next_step).
+            for pid in leaving:
+                gone = self.members.pop(pid)
                 self.version += 1
+                sent = {topic: count - gone.base_sent.get(topic, 0)
+                        for topic, count in gone.answer.sent.items()}
+                for member in self.members.values():
+                    for topic in member.offset.keys() & sent.keys():
+                        member.offset[topic] -= sent[topic]
         return reasons
 
     def answered(self, now_ns):

@@ -19,16 +19,19 @@ Step an in-process graph in lockstep with a simulator that owns time: the engine
 A ``UnicycleSim`` built with ``publish_clock`` and ``stepped=True`` takes no step of its own.
 Here the caller steps it: each step advances the clock by one simulator step, then spins until
 every message sent in the graph has been handled and no timer of a node is due, so a
-controller's answer always lands on its step, whatever the machine's load.  Messages are
-counted by each node's MessageCounter (lockstep/counter.py), the same counts a participant
-sends the simulator across processes.  Tests, tools and users reach it through
-sim_diffdrive.harness.SimGraph.
+controller's answer always lands on its step, whatever the machine's load.  What is owed is
+the clock owner's StepLedger (lockstep/handshake.py), as across processes: each node is a
+member whose answer is its MessageCounter's live counts (lockstep/counter.py), so no answer
+travels.  Tests, tools and users reach it through sim_diffdrive.harness.SimGraph.
 """
 
+import itertools
 import time
 
 from rosgraph_msgs.msg import Clock as ClockMsg
 from sim_diffdrive.lockstep.counter import MessageCounter
+from sim_diffdrive.lockstep.handshake import Answer
+from sim_diffdrive.lockstep.handshake import StepLedger
 from sim_diffdrive.sim.clock import SteppedClock
 
 _NS = 1_000_000_000
@@ -38,11 +41,15 @@ class Lockstep:
     """
     The nodes of one test or benchmark run, spun by ``executor``, stepped by ``step()``.
 
-    Once the nodes have discovered each other, each message a node publishes must arrive at
-    every in-graph subscription of its topic, and a step is settled when all that must arrive
-    has been handled (per topic, summed over the nodes' MessageCounters).  What arrives beyond
-    that (sent before the nodes matched, or by a process outside the graph) is forgotten
-    before the next step, as the lockstep across processes does (handshake.py).
+    Each node the graph has discovered is a member of ``ledger``, answering with its
+    counter's own dicts, so its counts are live, and the clock's time from each step on: what
+    a participant checks before it answers (its clock shows the time, no timer is due) is
+    checked here after the ledger's rule (settled()).  The answers carry no stamps: read
+    together and live, counts are exact on every topic, where across processes a stamp stands
+    in for counts of different ages.  So a node added to a running graph joins once
+    discovered and is counted once nothing else is owed; a removed one leaves, and what it
+    sent is still waited for; what members hear beyond what members sent (sent before the
+    nodes matched, or by a node outside the graph) is forgotten before the next step.
     """
 
     def __init__(self, executor):
@@ -50,12 +57,10 @@ class Lockstep:
         self.nodes = []
         self.clock_owner = None
         self.steps = 0
-        self._counters = []
-        self._fanout = []  # per counter: (topic, in-graph subscriptions) of what it publishes
-        # Per topic, added to (to arrive - handled): what was on its way when the counters
-        # were last taken, less the counts then, less the surplus forgotten since.
-        self._offset = {}
-        self._plan, self._plan_sizes = [], None  # for _laid_out(); None: to be laid out
+        # No member is ever dropped here: no owner to spare (see StepLedger.drop).
+        self.ledger = StepLedger(None)
+        self._answers = {}  # node -> its answer in the ledger
+        self._ids = itertools.count()  # a removed node's id stays taken (its goodbye is final)
         self._discovered = False
 
     def add(self, node):
@@ -82,7 +87,10 @@ class Lockstep:
         if node is self.clock_owner:
             self.clock_owner = None
         node.destroy_node()
-        self._instrument()
+        answer = self._answers.pop(node, None)
+        if answer is not None:  # a goodbye: what it sent is still waited for, not what it hears
+            answer.leaving = True
+            self.ledger.receive(answer, answer.step_ns)
 
         if not self.nodes:
             return
@@ -118,7 +126,10 @@ class Lockstep:
 
     def wait_for_discovery(self, timeout=10.0):
         """Spin until every publisher has matched every in-graph subscription of its topic."""
-        subscribers = self._graph_subscribers()
+        subscribers = {}
+        for node in self.nodes:
+            for sub in node.subscriptions:
+                subscribers[sub.topic_name] = subscribers.get(sub.topic_name, 0) + 1
 
         def matched():
             return all(pub.get_subscription_count() >= subscribers.get(pub.topic_name, 0)
@@ -126,12 +137,22 @@ class Lockstep:
         if not self.spin_until(matched, timeout, poll=0.01):
             raise RuntimeError('in-process nodes did not discover each other')
         # Count traffic from here on: what was sent before the nodes matched may never arrive.
-        self._instrument()
+        now_ns = self._now_ns()
+        for node in self.nodes:
+            counter = MessageCounter.of(node, _clock_topic(node), fixed=True)
+            counter.wrap_new()  # entities made since it was last looked at
+            answer = self._answers.get(node)
+            if answer is None:  # it joins
+                name = node.get_fully_qualified_name()
+                answer = self._answers[node] = Answer(f'{name}#{next(self._ids)}', name, now_ns,
+                                                      counter.sent, counter.heard)
+            # A member's again: a topic it hears since is owed from here on.
+            self.ledger.receive(answer, now_ns)
         self._discovered = True
 
     def settled(self, now_ns):
         """Return whether every message sent was handled and every node's timers have run."""
-        if self._owes():
+        if self.ledger.waiting_for(now_ns):
             return False
         for node in self.nodes:
             if node is self.clock_owner:
@@ -166,13 +187,16 @@ class Lockstep:
         if not self._discovered:
             self.wait_for_discovery()
         now_ns = self.clock_owner.now_ns()
-        if not self.spin_until(lambda: not self.pending(), timeout):
+        if not self.spin_until(lambda: not self.ledger.waiting_for(now_ns), timeout):
             raise RuntimeError(f'messages sent at t={now_ns / _NS:.3f} s were not handled')
         for _ in range(steps):
-            self._forget_surplus()
+            self.ledger.next_step(now_ns)  # forgets what was heard beyond what was sent
             self.clock_owner.clock.step()
             self.steps += 1
-            self._settle(self.clock_owner.now_ns(), timeout)
+            now_ns = self.clock_owner.now_ns()
+            for answer in self._answers.values():
+                answer.step_ns = now_ns  # each node answers at once: settled() checks the rest
+            self._settle(now_ns, timeout)
 
     def _settle(self, now_ns, timeout):
         if not self.spin_until(lambda: self.settled(now_ns), timeout):
@@ -192,81 +216,10 @@ class Lockstep:
 
     def pending(self):
         """Return how many messages sent in the graph have not been handled yet."""
-        return sum(owed for owed in self._owed().values() if owed > 0)
+        return sum(due for _, _, due in self.ledger.waiting_for(self._now_ns()))
 
-    def _owes(self):
-        """Return whether pending() is not 0, from the first topic owed (asked per callback)."""
-        offset = self._offset
-        for topic_sums in self._laid_out():
-            if _owed_on(offset, *topic_sums) > 0:
-                return True
-        return False
-
-    def _owed(self, offset=None):
-        """Per topic: messages to arrive at in-graph subscriptions less those handled."""
-        offset = self._offset if offset is None else offset
-        owed = dict(offset)
-        for topic_sums in self._laid_out():
-            owed[topic_sums[0]] = _owed_on(offset, *topic_sums)
-        return owed
-
-    def _laid_out(self):
-        """
-        Return, per topic: the counters' sent dicts with their fanout, and their heard dicts.
-
-        Laid out once for as long as no counter handles a new topic (a node wrapping a
-        subscription made later); the dicts are the counters' own, so the counts are live.
-        """
-        sizes = [len(counter.heard) for counter in self._counters]
-        if sizes != self._plan_sizes:
-            plan = {}
-            for counter, fanout in zip(self._counters, self._fanout):
-                for topic, count in fanout:
-                    plan.setdefault(topic, ([], []))[0].append((counter.sent, count))
-                for topic in counter.heard:
-                    plan.setdefault(topic, ([], []))[1].append(counter.heard)
-            self._plan = [(topic, senders, hearers) for topic, (senders, hearers) in plan.items()]
-            self._plan_sizes = sizes
-        return self._plan
-
-    def _forget_surplus(self):
-        """Forget messages handled beyond what the graph sent (they owe nothing)."""
-        for topic, owed in self._owed().items():
-            if owed < 0:
-                self._offset[topic] = self._offset.get(topic, 0) - owed
-
-    def _graph_subscribers(self):
-        """Return how many subscriptions the graph's nodes have, per topic."""
-        subscribers = {}
-        for node in self.nodes:
-            for sub in node.subscriptions:
-                subscribers[sub.topic_name] = subscribers.get(sub.topic_name, 0) + 1
-        return subscribers
-
-    def _instrument(self):
-        """Take every node's counter and the graph's subscriptions afresh (nodes came or went)."""
-        carried = {topic: owed for topic, owed in self._owed().items() if owed > 0}
-        subscribers = self._graph_subscribers()
-        self._counters = [MessageCounter.of(node, _clock_topic(node), fixed=True)
-                          for node in self.nodes]
-        for counter in self._counters:
-            counter.wrap_new()
-        self._fanout = [[(topic, subscribers[topic]) for topic in counter.sent
-                         if subscribers.get(topic)] for counter in self._counters]
-        self._plan_sizes = None
-        counted = self._owed({})
-        self._offset = {topic: carried.get(topic, 0) - counted.get(topic, 0)
-                        for topic in set(carried) | set(counted)}
-
-
-def _owed_on(offset, topic, senders, hearers):
-    """Return what topic owes: offset, plus what its senders sent times its fanout, less heard."""
-    owed = offset.get(topic, 0)
-    for sent, fanout in senders:
-        owed += fanout * sent[topic]
-    for heard in hearers:
-        owed -= heard[topic]
-    return owed
+    def _now_ns(self):
+        return self.clock_owner.now_ns() if self.clock_owner is not None else 0
 
 
 def _clock_topic(node):
