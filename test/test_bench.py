@@ -17,6 +17,7 @@
 import json
 import math
 import os
+import signal
 import subprocess
 import sys
 
@@ -129,11 +130,20 @@ def test_euler_error_is_orders_of_magnitude_above_the_exact_arc():
 def test_quick_run_writes_every_row(tmp_path):
     # The same command as make bench, at the small sizes of --quick (core.SIZES).
     path = tmp_path / 'bench.json'
-    result = subprocess.run(
+    # In a process group of its own: should the run hang, the group goes, the simulators and
+    # motions it started too (killed alone, the bench left them publishing on its domain).
+    bench = subprocess.Popen(
         [sys.executable, BENCH_PATH, '--quick', '--json', str(path),
          '--domain-id', str(DOMAIN_ID)],
-        env=dict(os.environ), capture_output=True, text=True, timeout=120)
-    assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
+        env=dict(os.environ), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        start_new_session=True)
+    try:
+        out, err = bench.communicate(timeout=120)
+    except subprocess.TimeoutExpired:
+        os.killpg(bench.pid, signal.SIGKILL)
+        out, err = bench.communicate()
+        pytest.fail('the quick bench did not end within 120 s:\n' + out[-3000:] + err[-3000:])
+    assert bench.returncode == 0, out[-3000:] + err[-3000:]
     report = json.loads(path.read_text())
     assert report['quick'] is True
     assert tuple(report['rows']) == ROW_KEYS
@@ -200,6 +210,6 @@ def test_quick_run_writes_every_row(tmp_path):
     assert suite['returncode'] == 0 and suite['counts']['passed'] > 0, suite
     assert 0.0 < suite['wall_s'] and 0.0 < suite['cpu_s'], suite
     # The table is printed too, with the commit it measured.
-    assert 'this project' in result.stdout and 'reference' in result.stdout
+    assert 'this project' in out and 'reference' in out
     assert report['machine']['commit'] != '?'
-    assert f'commit {report["machine"]["commit"]}' in result.stdout
+    assert f'commit {report["machine"]["commit"]}' in out
