@@ -27,7 +27,6 @@ arrives).
 
 import os
 import re
-import subprocess
 import time
 
 from geometry_msgs.msg import Twist
@@ -131,17 +130,14 @@ def test_distinct_frames_start(graph, namespace, params, expected):
     assert sim.robots[0].frames == expected
 
 
-def test_a_simulator_process_with_a_bad_frame_exits_2_naming_it(procs):
-    # Every refusal of a frame is tested in-process above: the process shows the path from -p
-    # to exit 2 once, with the value that the command line hands over as one word.
+def test_a_simulator_with_a_bad_frame_on_its_command_line_exits_2_naming_it(run_main):
+    # Every refusal of a frame is tested in-process above: the executable's main() shows the
+    # path from -p to exit 2 once, with the value that the command line hands over as one word
+    # (test_faults.py shows each executable's main() returning its exit code as a process).
     named = 'base_frame_id'
-    proc = procs('bad_frame', 'unicycle_sim', '--ros-args', '-p', 'base_frame_id:=base link')
-    try:
-        code = proc.wait(30.0)
-    except subprocess.TimeoutExpired:
-        pytest.fail(f'still running\n{proc.describe()}')
-    output = proc.output()
-    assert code == 2 and f"parameter '{named}'" in output, proc.describe()
+    code, output = run_main(node_module.main, 'unicycle_sim', '--ros-args', '-p',
+                            'base_frame_id:=base link')
+    assert code == 2 and f"parameter '{named}'" in output, output
     assert 'Traceback' not in output
 
 
