@@ -158,7 +158,7 @@ _LONGEST = (
     'test_view.py::test_the_browser_shows_the_robot_driving_up_the_screen',  # 14 s, Chromium
     'test_lockstep_faults.py::test_a_cmd_vel_listener_is_not_the_robot',  # 6 s, waiting
     'test_flake8.py::test_flake8',  # 6 CPU s
-    'test_lockstep_processes.py::test_a_simulator_that_was_not_running_gives_nobody_up',
+    'test_lockstep_processes.py::test_a_motion_left_behind_fails_and_a_stopped_simulator',
     'test_lockstep_processes.py::test_motions_end_exact_and_bit_identical_on_a_busy_machine',
     'test_faults.py::test_make_stress_reports_and_judges_a_short_flood',
     'test_lockstep_processes.py::test_a_killed_participant_is_left_behind_and_a_late_one_is',
