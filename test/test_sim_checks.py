@@ -30,15 +30,16 @@ import re
 import time
 
 from geometry_msgs.msg import Twist
+from geometry_msgs.msg import TwistStamped
 import pytest
 from rcl_interfaces.msg import Parameter as ParameterMsg
 from rcl_interfaces.srv import SetParameters
+import rclpy
+from rclpy.context import Context
 from rclpy.node import Node
 from rclpy.parameter import get_parameter_value
 from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock as ClockMsg
-from sim_diffdrive.harness import start_python
-from sim_diffdrive.harness import stop
 from sim_diffdrive.lockstep.owner import UNDISCOVERED_TIMEOUTS
 from sim_diffdrive.lockstep.participant import take_part
 from sim_diffdrive.parameters import ParameterError
@@ -386,19 +387,20 @@ def test_a_message_from_a_sender_that_left_and_is_gone_is_not_waited_for_long(gr
     assert 1.0 <= float(held.group(1)) < UNDISCOVERED_TIMEOUTS * 1.0
 
 
-# Another process: TwistStamped (Nav2's cmd_vel on Jazzy) published on robot b's cmd_vel, and
-# only subscribed to on robot a's.
-OTHER_TYPE = """
-import sys, time
-import rclpy
-from geometry_msgs.msg import TwistStamped
-rclpy.init()
-node = rclpy.create_node('stamped_teleop')
-node.create_subscription(TwistStamped, '/a/cmd_vel', lambda msg: None, 10)
-node.create_publisher(TwistStamped, '/b/cmd_vel', 10)
-print('ready', flush=True)
-time.sleep(60)
-"""
+def other_type_teleop(domain_id):
+    """
+    Return a node of a context (a DDS participant) of its own, as another process would be.
+
+    It publishes TwistStamped (Nav2's cmd_vel on Jazzy) on robot b's cmd_vel and only subscribes
+    to it on robot a's.  One participant cannot hold two types on one topic; another can, in
+    this process or in another: the simulator sees only what discovery tells it.
+    """
+    context = Context()
+    rclpy.init(context=context, domain_id=domain_id)
+    node = Node('stamped_teleop', context=context, enable_rosout=False)
+    node.create_subscription(TwistStamped, '/a/cmd_vel', lambda msg: None, 10)
+    node.create_publisher(TwistStamped, '/b/cmd_vel', 10)
+    return node
 
 
 def test_a_publisher_of_another_type_on_a_robots_cmd_vel_is_named_once(
@@ -410,7 +412,7 @@ def test_a_publisher_of_another_type_on_a_robots_cmd_vel_is_named_once(
     def warnings():
         log.append(capfd.readouterr().err)
         return [line for line in ''.join(log).splitlines() if 'never arrive' in line]
-    other = start_python(OTHER_TYPE)
+    other = other_type_teleop(graph.context.get_domain_id())
     try:
         deadline = time.monotonic() + 15.0
         while not warnings() and time.monotonic() < deadline:
@@ -420,7 +422,9 @@ def test_a_publisher_of_another_type_on_a_robots_cmd_vel_is_named_once(
             graph.step()
             graph.spin_for(0.05)
     finally:
-        stop(other)
+        context = other.context
+        other.destroy_node()
+        rclpy.try_shutdown(context=context)
     assert len(warnings()) == 1, log
     assert ('b: A publisher on /b/cmd_vel sends geometry_msgs/msg/TwistStamped, but this '
             'simulator takes geometry_msgs/msg/Twist (stamped:=true takes it)') in warnings()[0]
