@@ -239,9 +239,9 @@ def simulator(procs, graph, *params, robots=ROBOTS):
     """Start one unicycle_sim for robots, robot i at start_of(i); return it and a watcher each."""
     poses = ','.join(repr(float(v)) for v in initial_poses(robots))
     # The factor bounds lockstep's pace, and is the pace while nobody takes part (at startup,
-    # once the motions left): 10x, not 50x, as a simulator freewheeling at 50x takes about a
-    # core, and these motions are short (the same wall time at either, 2.7-2.9 s for the
-    # params-file test, 0.6 CPU s less).
+    # once the motions left): 10x, not 50x, as a simulator of three robots freewheeling at 50x
+    # takes about half a core (a quarter at 10x), and these motions are short (the same wall
+    # time at either, 2.7-2.9 s for the params-file test, 0.6 CPU s less).
     sim = procs('unicycle_sim', 'unicycle_sim', *ros_params(
         'publish_clock:=true', 'real_time_factor:=10.0', f'robots:=[{",".join(robots)}]',
         f'initial_poses:=[{poses}]', *params))
