@@ -126,27 +126,37 @@ def check_clean_interrupt(proc, problems, label):
 # -- SIGKILL of the controller -----------------------------------------------------------------
 
 
-def test_killed_controller_is_stopped_by_the_simulator_timeout(graph, procs):
-    # One controller drives two simulators on the same cmd_vel (wall time, 50 Hz odometry):
-    # one with a 0.3 s timeout, one with the timeout off (odometry remapped beside it).
+def test_killed_controller_is_stopped_by_the_simulator_timeout(graph, procs, capfd):
+    # One controller process drives two simulators on the same cmd_vel (wall time, 50 Hz
+    # odometry): one with a 0.3 s timeout, one with the timeout off (odometry remapped beside
+    # it, a node name of its own).  The simulators run in this process, over DDS from the
+    # controller's as from any other (what a process of its own adds, the executable's start
+    # and exit, is shown in test_sim_process.py); their log is this process's output.
     namespace = f'{_PREFIX}_sigkill'
     timeout_s, period_s = 0.3, 1.0 / 50.0
-    timed = procs('sim_timeout', 'unicycle_sim', *ros_args(
-        namespace, f'cmd_vel_timeout:={timeout_s}'))
-    keeping = procs('sim_keep', 'unicycle_sim', *ros_args(
-        namespace, KEEP_LAST_COMMAND), '-r', 'odom:=odom_keep')
+    graph.add(UnicycleSim(namespace=namespace, context=graph.context, cli_args=ros_args(
+        namespace, f'cmd_vel_timeout:={timeout_s}')))
+    graph.add(UnicycleSim(namespace=namespace, context=graph.context, cli_args=[
+        *ros_args(namespace, KEEP_LAST_COMMAND), '-r', 'odom:=odom_keep',
+        '-r', '__node:=unicycle_sim_keep']))
+    logged = []
+
+    def sim_log():
+        out, err = capfd.readouterr()
+        logged.append(out + err)
+        return ''.join(logged)
     watcher = watch(graph, namespace, record_commands=True)
     keeper = watch(graph, namespace, odom_topic='odom_keep', name='fault_watcher_keep')
     controller = procs('controller', 'circle_back_and_forth', *ros_args(
         namespace, 'half_period:=100.0'))
     assert graph.spin_until(
         lambda: watcher.moving and keeper.moving and len(watcher.commands) > 3,
-        20.0), controller.describe() + timed.describe()
+        20.0), controller.describe() + sim_log()
 
     controller.send(signal.SIGKILL)
     # Judged by the odometry's stamps, not by when it reaches this process: on a loaded machine
     # delivery (or this process) may lag behind by a good part of a second.
-    assert graph.spin_until(lambda: watcher.twist == (0.0, 0.0), 10.0), timed.describe()
+    assert graph.spin_until(lambda: watcher.twist == (0.0, 0.0), 10.0), sim_log()
     assert controller.wait(10.0) == -signal.SIGKILL  # on a busy machine, not reaped at once
 
     # The timeout counts from when the simulator took the last command, which it logs: on a
@@ -161,10 +171,13 @@ def test_killed_controller_is_stopped_by_the_simulator_timeout(graph, procs):
     heard_s = watcher.commands[-1][1]
 
     def last_stop():
-        stops = re.findall(pattern, timed.output())
+        stops = re.findall(pattern, timed_lines())
         return float(stops[-1]) if stops else None
-    assert graph.spin_until(lambda: (last_stop() or 0.0) > heard_s - 0.4, 10.0), \
-        timed.describe()
+
+    def timed_lines():
+        return '\n'.join(line for line in sim_log().splitlines()
+                         if f'{namespace[1:]}.unicycle_sim]' in line)
+    assert graph.spin_until(lambda: (last_stop() or 0.0) > heard_s - 0.4, 10.0), sim_log()
     took_s = last_stop()
     assert abs(took_s - heard_s) < 0.4, (took_s, heard_s)
     settled_s = took_s + timeout_s + 0.2
@@ -189,7 +202,8 @@ def test_killed_controller_is_stopped_by_the_simulator_timeout(graph, procs):
     # With the timeout off, the last command is kept, as documented.
     kept = [o for o in keeper.odoms if stamp_s(o) > settled_s]
     assert kept and all(twist(o) == (0.5, 0.5) for o in kept)
-    assert 'No cmd_vel' not in keeping.output()
+    keeping = [line for line in sim_log().splitlines() if 'unicycle_sim_keep]' in line]
+    assert keeping and not [line for line in keeping if 'No cmd_vel' in line], keeping
 
 
 # -- Ctrl-C and SIGTERM at every phase ---------------------------------------------------------

@@ -56,15 +56,25 @@ FACTOR = 40.0
 # seconds while this test runs; this test's own processes still share both cores with them.
 BUSY_LOOP = ('import os, time\nos.nice(5)\nend = time.monotonic() + 120\n'
              'while time.monotonic() < end: pass\n')
-EXTRA_SUBSCRIBER = """
+# The robots of the busy-machine test, a namespace each, which the extra subscriber listens to.
+BUSY_ROBOTS = ('closed', 'open')
+EXTRA_SUBSCRIBER = f"""
 import time, rclpy
 from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
 rclpy.init()
 node = rclpy.create_node('listener')
-slow = lambda msg: time.sleep(0.002)  # a slow logger
-node.create_subscription(Twist, 'cmd_vel', slow, 1000)
-node.create_subscription(Odometry, 'odom', slow, 1000)
+heard = set()
+def slow(topic):  # a slow logger, which says when it first hears a topic
+    def log(msg):
+        if topic not in heard:
+            heard.add(topic)
+            print('heard', topic, flush=True)
+        time.sleep(0.002)
+    return log
+for robot in {BUSY_ROBOTS!r}:
+    node.create_subscription(Twist, f'/{{robot}}/cmd_vel', slow(f'/{{robot}}/cmd_vel'), 1000)
+    node.create_subscription(Odometry, f'/{{robot}}/odom', slow(f'/{{robot}}/odom'), 1000)
 rclpy.spin(node)
 """
 # A participant that, once the robot drives, blocks its executor for longer than a closed
@@ -108,6 +118,7 @@ def busy_machine():
 
     The loops (one per core) run within busy() only, while the motions run: not while the
     simulator starts and is discovered, which they would only slow down, at their CPU's cost.
+    ``busy.listener`` is the subscriber's Process: its output names each topic it heard.
     """
     extra = start_python(EXTRA_SUBSCRIBER)
 
@@ -119,6 +130,7 @@ def busy_machine():
         finally:
             for loop in loops:
                 stop(loop, signal.SIGKILL)
+    busy.listener = extra
     try:
         yield busy
     finally:
@@ -216,7 +228,7 @@ def test_motions_end_exact_and_bit_identical_on_a_busy_machine(graph, busy_machi
     # Both motions at once, a robot each in one simulator, in its lockstep; twice.  The default
     # lockstep_timeout: with two busy loops and a second pytest worker on 2 cores, a motion was
     # once silent for longer than 0.5 s, was dropped, and failed.
-    motions = {'closed': CLOSED_LOOP, 'open': OPEN_LOOP}
+    motions = dict(zip(BUSY_ROBOTS, (CLOSED_LOOP, OPEN_LOOP)))
     sim = start('unicycle_sim', 'publish_clock:=true', f'real_time_factor:={FACTOR}',
                 'lockstep_timeout:=2.0', f'robots:={list(motions)}')
     reset = reset_client(graph)
@@ -244,6 +256,10 @@ def test_motions_end_exact_and_bit_identical_on_a_busy_machine(graph, busy_machi
         output = stop(sim)
     for name, (first, second) in ends.items():
         assert first == second, f'{name}: two runs differ: {first} vs {second}'
+    # The extra subscriber did listen to every robot's commands and odometry.
+    heard = busy_machine.listener.output()
+    assert all(f'heard /{name}/{topic}' in heard for name in motions
+               for topic in ('cmd_vel', 'odom')), heard
     # About one answer a step (time.md): the step's odometry comes before its /clock and is
     # answered with it.  Two a step when each was answered on its own (the rotation's 1.9 before
     # that); a /clock the simulator re-sent to a participant held up by the busy loops is
@@ -290,10 +306,14 @@ def test_a_killed_participant_is_left_behind_and_a_late_one_is_waited_for(graph,
     assert 'No cmd_vel for 0.5 s: stopping the robot' in sim_output
 
 
-def test_a_motion_the_simulator_went_on_without_fails_and_never_says_done(graph, simulator):
-    # Silent for longer than lockstep_timeout (0.5 s) mid-run, as on a lossy link or a machine
-    # too busy to run it: the simulator steps on without it, so the run cannot end exact.
+def test_a_motion_left_behind_fails_and_a_stopped_simulator_gives_nobody_up(graph, simulator):
+    # Two ways of being silent for longer than lockstep_timeout (0.5 s), in turn on one
+    # simulator: a motion stopped mid-run is left behind and fails; the simulator itself
+    # stopped leaves nobody behind.
     sim, probe, _ = simulator
+
+    # A motion silent mid-run, as on a lossy link or a machine too busy to run it: the
+    # simulator steps on without it, so the run cannot end exact.
     circle = start('circle_back_and_forth', 'use_sim_time:=true', 'cycles:=1')
     try:
         assert graph.spin_until(lambda: probe.twist[0] == 0.5, 30.0)
@@ -310,15 +330,14 @@ def test_a_motion_the_simulator_went_on_without_fails_and_never_says_done(graph,
     assert 'Done in' not in output, output
     assert re.search(r'went on without this node at [0-9.]+ s, [0-9.]+ s into the motion, '
                      r'.*stopped the robot', output), output
-    assert graph.spin_until(lambda: probe.twist[0] == 0.0, 10.0)
-    assert 'Lockstep: nothing heard from /circle_back_and_forth' in stop(sim)
+    # Stopped by the cmd_vel timeout, both speeds zero: the pose stays where it is now.
+    assert graph.spin_until(lambda: probe.twist == (0.0, 0.0), 10.0)
+    assert 'Lockstep: nothing heard from /circle_back_and_forth' in sim.output()
+    before = len(sim.output())
 
-
-def test_a_simulator_that_was_not_running_gives_nobody_up(graph, simulator):
-    # The simulator itself stopped for longer than lockstep_timeout (0.5 s), three times
-    # mid-turn (a machine too busy to run it): the motion's answers waited in its queue
-    # meanwhile, so nobody was silent.  (The old code gave something up in 4 runs of 4.)
-    sim, probe, _ = simulator
+    # The simulator itself stopped for longer than lockstep_timeout, three times mid-turn (a
+    # machine too busy to run it): the motion's answers waited in its queue meanwhile, so
+    # nobody was silent.  (The old code gave something up in 4 runs of 4.)
     _, _, start_yaw = pose_of(probe.odom)
     # A slow turn (9 s simulated), so that it still turns at the third stop.  The motion gives
     # up when simulated time stands still for odom_timeout (1 s by default): 0.8 s stopped,
@@ -343,7 +362,8 @@ def test_a_simulator_that_was_not_running_gives_nobody_up(graph, simulator):
     assert motion.returncode == 0, output
     assert graph.spin_until(lambda: probe.twist[1] == 0.0, 10.0)
     assert angle_error(pose_of(probe.odom)[2], start_yaw - math.radians(90.0)) < 1e-12, output
-    sim_output = stop(sim)
+    # Nobody given up since the circle was: the simulator's log from then on.
+    sim_output = stop(sim)[before:]
     assert 'going on without' not in sim_output, sim_output
 
 

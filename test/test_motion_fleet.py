@@ -26,6 +26,7 @@ from pathlib import Path
 import re
 import signal
 
+from motion_challenges import motion_fleet
 from motion_challenges.circle_back_and_forth import CircleBackAndForth
 from motion_challenges.motion_fleet import build_fleet
 from motion_challenges.motion_fleet import fleet_plan
@@ -234,14 +235,17 @@ def test_a_namespace_given_to_the_process_comes_before_every_robots():
 ROBOTS = ['robot1', 'robot2', 'robot3']
 
 
-def simulator(procs, graph, *params):
-    """Start one unicycle_sim for ROBOTS, robot i at start_of(i); return it and a watcher each."""
-    poses = ','.join(repr(float(v)) for v in initial_poses(ROBOTS))
-    # Lockstep sets the pace: the factor only bounds it (and the pace once the motions left).
+def simulator(procs, graph, *params, robots=ROBOTS):
+    """Start one unicycle_sim for robots, robot i at start_of(i); return it and a watcher each."""
+    poses = ','.join(repr(float(v)) for v in initial_poses(robots))
+    # The factor bounds lockstep's pace, and is the pace while nobody takes part (at startup,
+    # once the motions left): 10x, not 50x, as a simulator of three robots freewheeling at 50x
+    # takes about half a core (a quarter at 10x), and these motions are short (the same wall
+    # time at either, 2.7-2.9 s for the params-file test, 0.6 CPU s less).
     sim = procs('unicycle_sim', 'unicycle_sim', *ros_params(
-        'publish_clock:=true', 'real_time_factor:=50.0', f'robots:=[{",".join(ROBOTS)}]',
+        'publish_clock:=true', 'real_time_factor:=10.0', f'robots:=[{",".join(robots)}]',
         f'initial_poses:=[{poses}]', *params))
-    watchers = [graph.listener(robot) for robot in ROBOTS]
+    watchers = [graph.listener(robot) for robot in robots]
     assert graph.spin_until(lambda: all(w.odom is not None for w in watchers), 20.0), \
         'no odometry from the simulator(s)'
     return sim, watchers
@@ -260,18 +264,22 @@ def later_odometry(graph, watchers, seconds=0.2):
     return [w.odom for w in watchers]
 
 
-# Every refusal's wording is tested in process above; the process shows the path to exit 2 for
-# a mistake in the plan and for one in a motion's own parameters.
-@pytest.mark.parametrize('params,words', [
-    ((), ["parameter 'robots' must name at least one robot"]),
-    (('robots:=[robot1]', 'motions:=[rotate_robot]', 'angle_deg:=90.0'),
-     ["robot 'robot1' (rotate_robot)", 'angular_speed_deg, clockwise']),
-])
-def test_a_parameter_mistake_exits_2_and_names_the_parameter(graph, procs, params, words):
-    fleet = procs('motion_fleet', 'motion_fleet', *ros_params(*params))
+# Every refusal's wording is tested in process above; motion_fleet's main() shows the path to
+# exit 2 for a mistake in the plan, as a process (its console script), and for one in a
+# motion's own parameters, in this process (the same main(), the same run()).
+def test_a_plan_mistake_exits_2_and_names_the_parameter(graph, procs):
+    fleet = procs('motion_fleet', 'motion_fleet', *ros_params())
     code, output = wait_for_exit(graph, fleet, 20.0)
     assert code == 2, output
-    for word in words:
+    assert "parameter 'robots' must name at least one robot" in output
+    assert 'Traceback' not in output
+
+
+def test_a_motions_own_parameter_mistake_exits_2_and_names_robot_and_parameter(run_main):
+    code, output = run_main(motion_fleet.main, 'motion_fleet', *ros_params(
+        'robots:=[robot1]', 'motions:=[rotate_robot]', 'angle_deg:=90.0'))
+    assert code == 2, output
+    for word in ("robot 'robot1' (rotate_robot)", 'angular_speed_deg, clockwise'):
         assert word in output
     assert 'Traceback' not in output
 
@@ -300,9 +308,16 @@ def test_three_robots_from_the_shipped_params_file_each_end_exact(graph, procs):
     assert re.findall(r'Lockstep: (\S+) left at', sim_output) == ['/motion_fleet'], sim_output
 
 
-def test_ctrl_c_stops_every_robot(graph, procs):
+# Two fleets on one simulator, one after the other: the first is stopped with Ctrl-C while the
+# simulator runs, the second once the simulator was killed.  One simulator process for both.
+DEAD_SIM_ROBOTS = ['robot4', 'robot5', 'robot6']
+
+
+def test_ctrl_c_stops_every_robot_and_a_dead_simulator_is_named_per_robot(graph, procs):
     # The simulator keeps each last command for ever: only the motions' final stops stop them.
-    _, watchers = simulator(procs, graph, 'cmd_vel_timeout:=0.0')
+    sim, watchers = simulator(procs, graph, 'cmd_vel_timeout:=0.0',
+                              robots=ROBOTS + DEAD_SIM_ROBOTS)
+    watchers, later_watchers = watchers[:len(ROBOTS)], watchers[len(ROBOTS):]
     fleet = procs('motion_fleet', 'motion_fleet', *ros_params(
         f'robots:=[{",".join(ROBOTS)}]', 'motions:=[circle_back_and_forth]', sim_time=True))
     assert graph.spin_until(lambda: all(w.moving for w in watchers), 20.0), \
@@ -325,21 +340,21 @@ def test_ctrl_c_stops_every_robot(graph, procs):
         assert not any(is_moving(odom) for odom in stopped), robot
         assert len({pose_of(odom) for odom in stopped}) == 1, robot
 
-
-def test_a_fleet_names_the_robots_whose_final_stops_nobody_acknowledged(graph, procs):
-    # The simulator is killed mid-run; its subscriptions stay in discovery for seconds, so
-    # nothing acknowledges the final stops of the fleet's motions when it is stopped.
-    sim, watchers = simulator(procs, graph)
-    fleet = procs('motion_fleet', 'motion_fleet', *ros_params(
-        f'robots:=[{",".join(ROBOTS)}]', 'motions:=[circle_back_and_forth]', sim_time=True))
-    assert graph.spin_until(lambda: all(w.moving for w in watchers), 20.0), \
-        fleet.describe()
+    # The second fleet (a node name of its own, so that it takes part under its own name)
+    # drives the other robots; the simulator is killed mid-run.  Its subscriptions stay in
+    # discovery for seconds, so nothing acknowledges the final stops of the second fleet's
+    # motions when it is stopped.
+    orphaned = procs('motion_fleet_orphaned', 'motion_fleet', *ros_params(
+        f'robots:=[{",".join(DEAD_SIM_ROBOTS)}]', 'motions:=[circle_back_and_forth]',
+        sim_time=True), '-r', 'motion_fleet:__node:=motion_fleet_orphaned')
+    assert graph.spin_until(lambda: all(w.moving for w in later_watchers), 20.0), \
+        orphaned.describe()
     # The graph's nodes go first, as nothing is left to watch: destroying a node after a peer
     # on shared memory was SIGKILLed crashed the pytest worker, in Fast DDS, once in about 30
     # suite runs (docs/robustness.md, "Known gaps").
     graph.close()
     sim.send(signal.SIGKILL)
     sim.wait(10.0)
-    output = stop(fleet, signal.SIGINT)
-    assert (f'Not acknowledged within 0.2 s: the final stop of {", ".join(ROBOTS)} and the '
-            'lockstep goodbye (') in output, output
+    output = stop(orphaned, signal.SIGINT)
+    assert (f'Not acknowledged within 0.2 s: the final stop of {", ".join(DEAD_SIM_ROBOTS)} '
+            'and the lockstep goodbye (') in output, output

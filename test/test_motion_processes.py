@@ -15,9 +15,10 @@
 """
 The real executables over DDS, as a user runs them: a simulator process and a motion process.
 
-Typed answers through a pipe, answers given as parameters, no odometry at all.  Exactness
-across processes (lockstep under load) is proven in test_lockstep_processes.py, interrupts in
-test_interrupts.py; here a result is accepted within one simulator step of motion.
+Typed answers through a pipe, answers given as parameters, no odometry at all (input that
+ends too early: test_faults.py).  Exactness across processes (lockstep under load) is proven
+in test_lockstep_processes.py, interrupts in test_interrupts.py; here a result is accepted
+within one simulator step of motion.
 """
 
 import math
@@ -36,8 +37,8 @@ ONE_STEP_AT_60 = math.radians(60.0 / RATE_HZ) * 1.01
 
 
 # One simulator process for the module, a robot (namespace) per test: the tests never share a
-# robot, so none sees another's motion, and three process start-ups are saved.
-ROBOTS = ('typed', 'bad_answers', 'input_ended', 'parameters')
+# robot, so none sees another's motion, and two process start-ups are saved.
+ROBOTS = ('typed', 'bad_answers', 'parameters')
 
 
 @pytest.fixture(scope='module')
@@ -112,20 +113,6 @@ def test_bad_answers_are_explained_and_asked_again(graph, robot, procs):
     assert 'answer y or n' in output
     _, _, yaw = settle(graph, probe)
     assert angle_error(yaw, math.radians(45.0)) < ONE_STEP_AT_60
-
-
-def test_input_ending_early_refuses_and_never_moves(graph, robot, procs):
-    probe = robot('input_ended')
-    motion = procs('rotate_robot', 'rotate_robot', *rotate_args('input_ended'),
-                   stdin=subprocess.PIPE)
-    motion.write('60\n')
-    motion.close_input()
-    code, output = finish(graph, motion)
-    assert code == 2, output
-    assert 'input ended before the angle was given' in output
-    settle(graph, probe)
-    assert all(pose_of(o) == (0.0, 0.0, 0.0) for o in probe.odoms)
-    assert all(o.twist.twist.angular.z == 0.0 for o in probe.odoms)
 
 
 def test_parameters_skip_the_questions(graph, robot, procs):

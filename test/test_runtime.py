@@ -61,18 +61,6 @@ class Finished(Node):
         self.journal.append((self.get_name(), what))
 
 
-@pytest.fixture
-def main_process():
-    """Give run() the process: restore the signal handlers and the default context after it."""
-    handlers = {signum: signal.getsignal(signum) for signum in (signal.SIGINT, signal.SIGTERM)}
-    try:
-        yield
-    finally:
-        rclpy.try_shutdown()
-        for signum, handler in handlers.items():
-            signal.signal(signum, handler)
-
-
 def run_node(node_kwargs):
     nodes = []
 

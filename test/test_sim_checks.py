@@ -27,19 +27,19 @@ arrives).
 
 import os
 import re
-import subprocess
 import time
 
 from geometry_msgs.msg import Twist
+from geometry_msgs.msg import TwistStamped
 import pytest
 from rcl_interfaces.msg import Parameter as ParameterMsg
 from rcl_interfaces.srv import SetParameters
+import rclpy
+from rclpy.context import Context
 from rclpy.node import Node
 from rclpy.parameter import get_parameter_value
 from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock as ClockMsg
-from sim_diffdrive.harness import start_python
-from sim_diffdrive.harness import stop
 from sim_diffdrive.lockstep.owner import UNDISCOVERED_TIMEOUTS
 from sim_diffdrive.lockstep.participant import take_part
 from sim_diffdrive.parameters import ParameterError
@@ -131,17 +131,14 @@ def test_distinct_frames_start(graph, namespace, params, expected):
     assert sim.robots[0].frames == expected
 
 
-def test_a_simulator_process_with_a_bad_frame_exits_2_naming_it(procs):
-    # Every refusal of a frame is tested in-process above: the process shows the path from -p
-    # to exit 2 once, with the value that the command line hands over as one word.
+def test_a_simulator_with_a_bad_frame_on_its_command_line_exits_2_naming_it(run_main):
+    # Every refusal of a frame is tested in-process above: the executable's main() shows the
+    # path from -p to exit 2 once, with the value that the command line hands over as one word
+    # (test_faults.py shows each executable's main() returning its exit code as a process).
     named = 'base_frame_id'
-    proc = procs('bad_frame', 'unicycle_sim', '--ros-args', '-p', 'base_frame_id:=base link')
-    try:
-        code = proc.wait(30.0)
-    except subprocess.TimeoutExpired:
-        pytest.fail(f'still running\n{proc.describe()}')
-    output = proc.output()
-    assert code == 2 and f"parameter '{named}'" in output, proc.describe()
+    code, output = run_main(node_module.main, 'unicycle_sim', '--ros-args', '-p',
+                            'base_frame_id:=base link')
+    assert code == 2 and f"parameter '{named}'" in output, output
     assert 'Traceback' not in output
 
 
@@ -390,19 +387,20 @@ def test_a_message_from_a_sender_that_left_and_is_gone_is_not_waited_for_long(gr
     assert 1.0 <= float(held.group(1)) < UNDISCOVERED_TIMEOUTS * 1.0
 
 
-# Another process: TwistStamped (Nav2's cmd_vel on Jazzy) published on robot b's cmd_vel, and
-# only subscribed to on robot a's.
-OTHER_TYPE = """
-import sys, time
-import rclpy
-from geometry_msgs.msg import TwistStamped
-rclpy.init()
-node = rclpy.create_node('stamped_teleop')
-node.create_subscription(TwistStamped, '/a/cmd_vel', lambda msg: None, 10)
-node.create_publisher(TwistStamped, '/b/cmd_vel', 10)
-print('ready', flush=True)
-time.sleep(60)
-"""
+def other_type_teleop(domain_id):
+    """
+    Return a node of a context (a DDS participant) of its own, as another process would be.
+
+    It publishes TwistStamped (Nav2's cmd_vel on Jazzy) on robot b's cmd_vel and only subscribes
+    to it on robot a's.  One participant cannot hold two types on one topic; another can, in
+    this process or in another: the simulator sees only what discovery tells it.
+    """
+    context = Context()
+    rclpy.init(context=context, domain_id=domain_id)
+    node = Node('stamped_teleop', context=context, enable_rosout=False)
+    node.create_subscription(TwistStamped, '/a/cmd_vel', lambda msg: None, 10)
+    node.create_publisher(TwistStamped, '/b/cmd_vel', 10)
+    return node
 
 
 def test_a_publisher_of_another_type_on_a_robots_cmd_vel_is_named_once(
@@ -414,7 +412,7 @@ def test_a_publisher_of_another_type_on_a_robots_cmd_vel_is_named_once(
     def warnings():
         log.append(capfd.readouterr().err)
         return [line for line in ''.join(log).splitlines() if 'never arrive' in line]
-    other = start_python(OTHER_TYPE)
+    other = other_type_teleop(graph.context.get_domain_id())
     try:
         deadline = time.monotonic() + 15.0
         while not warnings() and time.monotonic() < deadline:
@@ -424,7 +422,9 @@ def test_a_publisher_of_another_type_on_a_robots_cmd_vel_is_named_once(
             graph.step()
             graph.spin_for(0.05)
     finally:
-        stop(other)
+        context = other.context
+        other.destroy_node()
+        rclpy.try_shutdown(context=context)
     assert len(warnings()) == 1, log
     assert ('b: A publisher on /b/cmd_vel sends geometry_msgs/msg/TwistStamped, but this '
             'simulator takes geometry_msgs/msg/Twist (stamped:=true takes it)') in warnings()[0]

@@ -13,12 +13,13 @@
 # limitations under the License.
 
 """
-The sim_graph fixture as a user meets it: the documented examples, run from directories.
+The sim_graph fixture as a user meets it: the documented examples, run from a directory.
 
 Each example is taken from its page as written (the README's, and docs/world.md's controller
 that reads the scan) and run by pytest in a temporary directory outside the project (no
 conftest, only the installed plugin); a copy whose controller stops too early must fail, so
-the example's assertions are real.
+the example's assertions are real.  One pytest run takes all four files: each test is judged
+by its own outcome line, and one run starts pytest, rclpy and the plugin once, not twice.
 """
 
 from pathlib import Path
@@ -37,34 +38,32 @@ def page_example(page, marker):
     return match.group(1)
 
 
-def run_example_and_early_copy(directory, example, early, test_name):
-    """Run example and its early-stopping copy with pytest in directory; check 1 of 2 fails."""
-    assert early != example
-    (directory / 'test_example.py').write_text(example)
-    (directory / 'test_stops_early.py').write_text(early)
+def test_the_documented_examples_pass_from_a_directory_of_their_own_and_can_fail(tmp_path):
+    readme = page_example('README.md', 'sim_graph example')
+    scan = page_example('docs/world.md', 'scan example')
+    # file stem -> (its text, its test, whether it must pass).  The README's controller
+    # stopping half a second early must fail the same assertions; the scan's stopping a whole
+    # metre before the wall must fail.
+    files = {
+        'test_readme_example': (readme, 'test_drives_one_metre_and_stops', True),
+        'test_readme_stops_early': (readme.replace('2_000_000_000', '1_500_000_000'),
+                                    'test_drives_one_metre_and_stops', False),
+        'test_scan_example': (scan, 'test_stops_half_a_metre_before_the_wall', True),
+        'test_scan_stops_early': (scan.replace('if ahead > 0.5:', 'if ahead > 1.0:'),
+                                  'test_stops_half_a_metre_before_the_wall', False),
+    }
+    assert files['test_readme_stops_early'][0] != readme
+    assert files['test_scan_stops_early'][0] != scan
+    shutil.copytree(ROOT / 'maps', tmp_path / 'maps')  # the scan example's map
+    for stem, (text, _, _) in files.items():
+        (tmp_path / f'{stem}.py').write_text(text)
     result = subprocess.run(
         [sys.executable, '-m', 'pytest', '-q', '-p', 'no:cacheprovider', '-W',
-         'ignore::DeprecationWarning', '-rA', 'test_example.py', 'test_stops_early.py'],
-        cwd=directory, capture_output=True, text=True, timeout=120)
+         'ignore::DeprecationWarning', '-rA', *(f'{stem}.py' for stem in files)],
+        cwd=tmp_path, capture_output=True, text=True, timeout=120)
     output = result.stdout + result.stderr
     assert result.returncode == 1, output
-    assert '1 failed, 1 passed' in output
-    assert f'PASSED test_example.py::{test_name}' in output
-    assert f'FAILED test_stops_early.py::{test_name}' in output
-
-
-def test_the_readme_example_passes_from_a_directory_of_its_own_and_can_fail(tmp_path):
-    example = page_example('README.md', 'sim_graph example')
-    # The same controller stopping half a second early must fail the same assertions.
-    run_example_and_early_copy(tmp_path, example,
-                               example.replace('2_000_000_000', '1_500_000_000'),
-                               'test_drives_one_metre_and_stops')
-
-
-def test_the_scan_example_passes_from_a_directory_of_its_own_and_can_fail(tmp_path):
-    example = page_example('docs/world.md', 'scan example')
-    shutil.copytree(ROOT / 'maps', tmp_path / 'maps')
-    # Stopping a whole metre before the wall must fail.
-    run_example_and_early_copy(tmp_path, example,
-                               example.replace('if ahead > 0.5:', 'if ahead > 1.0:'),
-                               'test_stops_half_a_metre_before_the_wall')
+    assert '2 failed, 2 passed' in output, output
+    for stem, (_, test_name, passes) in files.items():
+        outcome = 'PASSED' if passes else 'FAILED'
+        assert f'{outcome} {stem}.py::{test_name}' in output, output

@@ -38,6 +38,7 @@ from sim_diffdrive.harness import SimGraph
 from sim_diffdrive.harness import twist_of
 from sim_diffdrive.lockstep.participant import take_part
 from sim_diffdrive.parameters import ParameterError
+from sim_diffdrive.sim.node import main as sim_main
 from sim_diffdrive.sim.node import UnicycleSim
 from sim_diffdrive.sim.surroundings import LATCHED_QOS
 from std_srvs.srv import Empty
@@ -267,11 +268,12 @@ def test_bad_worlds_are_refused_by_name(ros_context, tmp_path):
                                          scan_range_max=2.0)
 
 
-def test_a_missing_map_file_ends_unicycle_sim_with_exit_2_naming_it(procs, tmp_path):
+def test_a_missing_map_file_ends_unicycle_sim_with_exit_2_naming_it(run_main, tmp_path):
+    # Its main() in this process, as the console script calls it (test_faults.py shows each
+    # executable's main() returning its exit code as a process).
     missing = str(tmp_path / 'nowhere.yaml')
-    sim = procs('unicycle_sim', 'unicycle_sim', '--ros-args', '-p', f'map_file:={missing}')
-    code = sim.wait(20.0)
-    output = sim.output()
+    code, output = run_main(sim_main, 'unicycle_sim', '--ros-args', '-p',
+                            f'map_file:={missing}')
     assert code == 2, output
     assert "'map_file'" in output and 'nowhere.yaml' in output
     assert 'Traceback' not in output
