@@ -43,8 +43,9 @@ ROSDEP_KEYS = {
     'yaml': 'python3-yaml',
 }
 # ROS packages a Python module of the same name comes from.
-ROS_PACKAGES = {'ament_index_python', 'geometry_msgs', 'nav_msgs', 'rcl_interfaces', 'rclpy',
-                'rosgraph_msgs', 'sensor_msgs', 'std_msgs', 'std_srvs', 'tf2_msgs'}
+ROS_PACKAGES = {'ament_index_python', 'builtin_interfaces', 'geometry_msgs', 'nav_msgs',
+                'rcl_interfaces', 'rclpy', 'rosgraph_msgs', 'sensor_msgs', 'std_msgs', 'std_srvs',
+                'tf2_msgs'}
 # ROS packages the launch file imports or starts nodes of.
 LAUNCH_PACKAGES = {'launch', 'launch_ros', 'rviz2', 'tf2_ros'}
 # Optional dependencies (pip packages without a rosdep key): each imported only by the module of
