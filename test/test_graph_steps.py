@@ -24,36 +24,14 @@ import math
 
 from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
-import pytest
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from sim_diffdrive.harness import angle_error
-from sim_diffdrive.harness import pose_of
+from test_sim_graph import assert_pose
+from test_sim_graph import command
+from test_sim_graph import settle
+from test_sim_graph import stamp_ns
 
 NS = 1_000_000_000
-
-
-def stamp_ns(odom):
-    return odom.header.stamp.sec * NS + odom.header.stamp.nanosec
-
-
-def assert_pose(odom, expected, tol=1e-12):
-    x, y, yaw = pose_of(odom)
-    assert x == pytest.approx(expected[0], abs=tol)
-    assert y == pytest.approx(expected[1], abs=tol)
-    assert angle_error(yaw, expected[2]) <= tol
-
-
-def settle(graph):
-    """Spin until every message sent so far has been handled, without stepping time."""
-    now_ns = graph.now_ns
-    assert graph.spin_until(lambda: graph.settled(now_ns), timeout=5.0, poll=0.001)
-
-
-def command(graph, probe, v, w):
-    """Send one Twist now and wait until it has been handled."""
-    probe.send(v, w)
-    settle(graph)
 
 
 def sim_time_node(graph, name):
