@@ -31,8 +31,7 @@ from benchmark.core import Row
 from benchmark.core import row
 from benchmark.one_process import one_process
 from benchmark.originals import closure
-from benchmark.round_trips import bare_step
-from benchmark.round_trips import ping_pong
+from benchmark.round_trips import round_trips
 import numpy as np
 from rclpy.clock import Clock
 from rclpy.clock import ClockType
@@ -182,9 +181,10 @@ def rtf_processes(run):
     worst_mm, worst_deg = np.nanmax(list(errors.values()), axis=(0, 1))
     answers = {m: np.mean([r.get('answers_per_step', math.nan) for r in runs])
                for m, runs in results.items()}
-    round_trips = run.once(ping_pong)  # beside it: two processes' round trips [us]
-    round_trip_us, p90_us = np.median(round_trips), np.percentile(round_trips, 90)
-    bare_us = np.median(run.once(bare_step))  # and a step's four messages alone
+    pair = run.once(round_trips)  # beside it: two processes' round trips [us]
+    pings = pair['ping_pong']
+    round_trip_us, p90_us = np.median(pings), np.percentile(pings, 90)
+    bare_us = np.median(pair['bare_step'])  # and a step's four messages alone
     # A step is 20 ms of simulated time: its wall cost at the slowest motion's factor.
     step_us = 2e4 / min((x for x in rtf.values() if math.isfinite(x)), default=math.nan)
     ratio = step_us / round_trip_us
@@ -202,7 +202,7 @@ def rtf_processes(run):
         'count): ' + ', '.join(f'{m} {a:.2f}' for m, a in answers.items())
         + '. Ping-pong: two Python processes that only bounce one raw std_msgs/UInt64 '
         "(rclpy's serialized publish, raw subscriptions, EventsExecutor spin_once loops, the "
-        f"package's DDS profile): median of {len(round_trips)} round trips after "
+        f"package's DDS profile): median of {len(pings)} round trips after "
         f"{run.sizes.ping_pongs[1]} warm-up (p90 {p90_us:.0f} us). A step's messages alone: "
         'one process publishes odometry bytes and a /clock, the other answers from a 50 Hz '
         "timer on that clock with a Twist and an answer, as many steps (median). A step's "

@@ -15,15 +15,16 @@
 """
 Row 7's references: what the messages of a lockstep step cost between two processes alone.
 
-``ping_pong``: two processes that only bounce one raw std_msgs/UInt64.  ``bare_step``: the
-four messages of a lockstep step and nothing else: one process publishes an Odometry's bytes
-and then a /clock, the other takes both and publishes a Twist's and an answer's bytes from its
-/clock callback, and the first waits for both before the next step.  (From the callback, not
-from a timer on sim time: the EventsExecutor's duplicate timer events, lockstep/counter.py,
-would make such a timer skip a step now and then, and the pair would wait for ever; the timer
-costs about as much, 479 against 457 us a step in one measurement.)  Both use rclpy's
-serialized publish, raw subscriptions, EventsExecutor spin_once loops as the executables spin,
-and the package's DDS profile.
+One pair of processes measures both, one after the other.  The ping-pong: the first process
+bounces one raw std_msgs/UInt64 off the second.  The bare step: the four messages of a
+lockstep step and nothing else: the first publishes an Odometry's bytes and then a /clock, the
+second takes both and publishes a Twist's and an answer's bytes from its /clock callback, and
+the first waits for both before the next step.  (From the callback, not from a timer on sim
+time: the EventsExecutor's duplicate timer events, lockstep/counter.py, would make such a timer
+skip a step now and then, and the pair would wait for ever; the timer costs about as much, 479
+against 457 us a step in one measurement.)  Both use rclpy's serialized publish, raw
+subscriptions, EventsExecutor spin_once loops as the executables spin, and the package's DDS
+profile.
 """
 
 import json
@@ -45,73 +46,78 @@ from std_msgs.msg import String, UInt64
 use_package_profile()  # before the first node, as runtime.run() does for the executables
 rclpy.init()
 role, executor, heard = sys.argv[1], EventsExecutor(), []
-step = role.endswith('step')
 CLOCK = ['--ros-args', '-r', '/clock:=/bench_clock']  # this pair's own clock topic
 node = rclpy.create_node(f'bench_{role}', enable_rosout=False, cli_args=CLOCK)
 executor.add_node(node)
-if not step:
-    out, back = ('bench_ping', 'bench_pong')[::1 if role == 'ping' else -1]
-    publisher = node.create_publisher(UInt64, out, 10)
-    node.create_subscription(UInt64, back, heard.append if role == 'ping' else publisher.publish,
-                             10, raw=True)  # pong: each ping's bytes straight back
-elif role == 'owner_step':
+RELIABLE = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE)
+if role == 'timed':
+    ping = node.create_publisher(UInt64, 'bench_ping', 10)
     odom = node.create_publisher(Odometry, 'bench_odom', 10)
-    publisher = node.create_publisher(Clock, '/clock', QoSProfile(
-        depth=1, reliability=ReliabilityPolicy.RELIABLE))
-    back = 'bench_answers'
-    node.create_subscription(Twist, 'bench_cmd', heard.append, 1000, raw=True)
-    node.create_subscription(String, back, heard.append, 10, raw=True)
-else:
+    clock = node.create_publisher(Clock, '/clock', RELIABLE)
+    for topic, type_ in (('bench_pong', UInt64), ('bench_cmd', Twist),
+                         ('bench_answers', String)):
+        node.create_subscription(type_, topic, heard.append, 1000, raw=True)
+else:  # the partner: each ping's bytes straight back; a command and an answer per /clock
+    pong = node.create_publisher(UInt64, 'bench_pong', 10)
     cmd = node.create_publisher(Twist, 'bench_cmd', 10)
     answers = node.create_publisher(String, 'bench_answers', 10)
-    node.create_subscription(Odometry, 'bench_odom', heard.append, 10, raw=True)
+    node.create_subscription(UInt64, 'bench_ping', pong.publish, 10, raw=True)
+    node.create_subscription(Odometry, 'bench_odom', lambda _: None, 10, raw=True)
     command, answer = twist_message(0.2, 0.0), string_message('{}')
     node.create_subscription(Clock, '/clock', lambda _: (cmd.publish(command),
                                                          answers.publish(answer)),
-                             QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE),
-                             raw=True)
-try:
-    while role in ('pong', 'member_step') and rclpy.ok():
-        executor.spin_once(timeout_sec=0.1)
-        heard.clear()
-    due, times, warm_ups = time.monotonic() + 30.0, [], int(sys.argv[3])
-    while not publisher.get_subscription_count() or not node.count_publishers(back):
-        if time.monotonic() > due:
-            sys.exit('no partner process matched')
-        executor.spin_once(timeout_sec=0.01)
-    odom_data = serialize_message(Odometry())
-    for k in range(warm_ups + int(sys.argv[2])):
+                             RELIABLE, raw=True)
+
+
+def timed(send, replies, count):
+    times = []
+    for k in range(count):
         sent = time.perf_counter_ns()
-        if step:  # odometry, then the /clock of its step, as the simulator sends them
-            odom.publish(odom_data)
-            publisher.publish(clock_message((k + 1) * 20_000_000))
-        else:
-            publisher.publish(serialize_message(UInt64(data=k)))
-        while len(heard) < (2 if step else 1):  # (a lost answer: the caller's wait ends it)
+        send(k)
+        while len(heard) < replies:  # (a lost answer: the caller's wait ends it)
             executor.spin_once(timeout_sec=0.1)
         times.append(time.perf_counter_ns() - sent)
         heard.clear()
-    print('round trips ns:', json.dumps(times[warm_ups:]), flush=True)
+    return times
+
+
+def step(k):  # odometry, then the /clock of its step, as the simulator sends them
+    odom.publish(odom_data)
+    clock.publish(clock_message((k + 1) * 20_000_000))
+
+
+try:
+    if role == 'partner':
+        while rclpy.ok():
+            executor.spin_once(timeout_sec=0.1)
+    else:
+        due, count, warm_ups = time.monotonic() + 30.0, int(sys.argv[2]), int(sys.argv[3])
+        while not all(pub.get_subscription_count() for pub in (ping, odom, clock)) or not all(
+                node.count_publishers(t) for t in ('bench_pong', 'bench_cmd', 'bench_answers')):
+            if time.monotonic() > due:
+                sys.exit('no partner process matched')
+            executor.spin_once(timeout_sec=0.01)
+        odom_data = serialize_message(Odometry())
+        pings = timed(lambda k: ping.publish(serialize_message(UInt64(data=k))), 1,
+                      warm_ups + count)
+        steps = timed(step, 2, warm_ups + count)
+        print('round trips ns:', json.dumps({'ping_pong': pings[warm_ups:],
+                                             'bare_step': steps[warm_ups:]}), flush=True)
 except KeyboardInterrupt:
     pass
 """
 
 
-def ping_pong(run):
-    """Return the round trips [us] of the ping-pong pair (core.SIZES 'ping_pongs')."""
-    return _pair(run, 'ping', 'pong')
+def round_trips(run):
+    """
+    Return {'ping_pong': round trips [us], 'bare_step': steps [us]} of one pair of processes.
 
-
-def bare_step(run):
-    """Return the steps [us] of the bare lockstep pair (as many as ping_pong's)."""
-    return _pair(run, 'owner_step', 'member_step')
-
-
-def _pair(run, first, second):
-    round_trips, warm_ups = run.sizes.ping_pongs
-    partner = run.start(sys.executable, '-c', SCRIPT, second)
-    timed = run.start(sys.executable, '-c', SCRIPT, first, str(round_trips), str(warm_ups))
-    wait_s = 60.0 + 0.05 * (round_trips + warm_ups)
+    As many of each as core.SIZES 'ping_pongs' says, after its warm-ups.
+    """
+    count, warm_ups = run.sizes.ping_pongs
+    partner = run.start(sys.executable, '-c', SCRIPT, 'partner')
+    timed = run.start(sys.executable, '-c', SCRIPT, 'timed', str(count), str(warm_ups))
+    wait_s = 60.0 + 0.1 * (count + warm_ups)
     try:
         timed.wait(wait_s)
         late = ''
@@ -121,6 +127,6 @@ def _pair(run, first, second):
         out, _ = run.stop(timed), run.stop(partner)
     lines = [line for line in out.splitlines() if line.startswith('round trips ns: ')]
     if late or timed.returncode or not lines:
-        raise RuntimeError(f'the {first} and {second} processes failed ({timed.returncode})'
-                           f'{late}:\n{out}')
-    return [ns / 1000.0 for ns in json.loads(lines[0][len('round trips ns: '):])]
+        raise RuntimeError(f'the round-trip processes failed ({timed.returncode}){late}:\n{out}')
+    return {key: [ns / 1000.0 for ns in times]
+            for key, times in json.loads(lines[0][len('round trips ns: '):]).items()}
