@@ -151,6 +151,28 @@ def test_duplicate_events_never_move_the_schedule(node):
     assert timer.time_until_next_call() > 50_000_000  # rcl's own: whole periods ahead
 
 
+def test_a_destroyed_timer_leaves_the_others_catching_up(node):
+    # Three timers, the middle one destroyed: duplicate events on the last still leave none of
+    # its calls skipped (each /clock looks for every live timer among the node's).
+    ticks = {name: [] for name in 'abc'}
+    timers = {name: node.create_timer(
+        0.1, lambda name=name: ticks[name].append(node.get_clock().now().nanoseconds))
+        for name in 'abc'}
+    lockstep = take_part(node)
+    clock_sub = next(sub for sub in node.subscriptions if sub.msg_type is ClockMsg)
+    node.destroy_timer(timers.pop('b'))
+    for t_ns in (5_000_000_000, 5_100_000_000, 5_200_000_000):
+        clock_sub.callback(ClockMsg(clock=Time(nanoseconds=t_ns).to_msg()))
+        for timer in timers.values():
+            while timer.is_ready():  # an event and a duplicate, as a loaded executor runs
+                for _ in range(2):
+                    timer.handle.call_timer()
+                    timer.callback()
+    expected = [5_000_000_000, 5_100_000_000, 5_200_000_000]
+    assert ticks == {'a': expected, 'b': [], 'c': expected}
+    assert lockstep.until_next_call_ns(timers['c']) == 100_000_000
+
+
 def test_a_timer_runs_at_once_after_the_clock_went_back(node):
     # A replayed or restarted /clock: the timer's schedule starts afresh, not 90 s from now.
     clock_at, event, ticks, _ = tick_at(node)

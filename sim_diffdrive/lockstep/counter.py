@@ -175,7 +175,7 @@ class MessageCounter:
 
     def _catch_up(self):
         """Run the calls that duplicate events made rcl skip, now due (after each /clock)."""
-        timers = self.node.timers
+        timers = set(self.node.timers)  # node.timers is a generator: one pass, kept
         for timer, calls in list(self._sim_time_calls.items()):
             if timer in timers:
                 calls.catch_up()
