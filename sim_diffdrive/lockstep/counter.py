@@ -246,6 +246,12 @@ class _SimTimeCalls:
             self._callback()  # the /clock callback's listeners run next
 
 
+def clock_topic(node):
+    """Return the clock topic node runs on (its TimeSource's subscription, remapped or not)."""
+    return next((sub.topic_name for sub in node.subscriptions if sub.msg_type is ClockMsg),
+                '/clock')
+
+
 def _stamp_reader(msg_type):
     """
     Return how to read the header stamp [ns] of msg_type's messages, or None if they have none.

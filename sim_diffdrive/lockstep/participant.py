@@ -37,8 +37,8 @@ from rclpy.executors import MultiThreadedExecutor
 from rclpy.qos import DurabilityPolicy
 from rclpy.qos import QoSProfile
 from rclpy.qos import ReliabilityPolicy
-from rosgraph_msgs.msg import Clock as ClockMsg
 from sim_diffdrive.cdr import string_message
+from sim_diffdrive.lockstep.counter import clock_topic
 from sim_diffdrive.lockstep.counter import MessageCounter
 from sim_diffdrive.lockstep.handshake import Answer
 from sim_diffdrive.lockstep.handshake import answer_topic
@@ -77,7 +77,7 @@ class Participant:
         # When the clock owner last went on without this node [ns, its clock], or None.
         self.dropped_ns = None
         # The clock this node runs on (its TimeSource's subscription, remapped or not).
-        self._clock_topic = _clock_topic(node)
+        self._clock_topic = clock_topic(node)
         self._answer_topic = answer_topic(self._clock_topic)
         self._publisher = node.create_publisher(String, self._answer_topic, ANSWER_QOS)
         node.create_subscription(String, roster_topic(self._clock_topic), self._on_roster,
@@ -93,7 +93,7 @@ class Participant:
     def can_add(self, node):
         """Return whether add(node) would take it: on sim time, on this clock, not yet added."""
         return (node.get_parameter('use_sim_time').value and node not in self._nodes
-                and _clock_topic(node) == self._clock_topic)
+                and clock_topic(node) == self._clock_topic)
 
     def add(self, node):
         """
@@ -111,7 +111,7 @@ class Participant:
                                'has answered: add nodes before spinning')
         if not self.can_add(node):
             raise ValueError(f'{node.get_fully_qualified_name()} cannot be added: it is '
-                             f'already, or it runs on {_clock_topic(node)}, not on '
+                             f'already, or it runs on {clock_topic(node)}, not on '
                              f'{self._clock_topic}')
         self._answer_for(node)
         return Member(self, node)
@@ -384,12 +384,6 @@ def _check_sim_time(node):
     if not node.get_parameter('use_sim_time').value:
         raise ValueError(f'{node.get_fully_qualified_name()} cannot take part in lockstep: '
                          'use_sim_time is false')
-
-
-def _clock_topic(node):
-    """Return the clock topic node runs on (its TimeSource's subscription, remapped or not)."""
-    return next((sub.topic_name for sub in node.subscriptions if sub.msg_type is ClockMsg),
-                '/clock')
 
 
 def _settled_ns(node, counter):

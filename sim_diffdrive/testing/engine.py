@@ -28,7 +28,7 @@ travels.  Tests, tools and users reach it through sim_diffdrive.harness.SimGraph
 import itertools
 import time
 
-from rosgraph_msgs.msg import Clock as ClockMsg
+from sim_diffdrive.lockstep.counter import clock_topic
 from sim_diffdrive.lockstep.counter import MessageCounter
 from sim_diffdrive.lockstep.handshake import Answer
 from sim_diffdrive.lockstep.handshake import StepLedger
@@ -139,7 +139,7 @@ class Lockstep:
         # Count traffic from here on: what was sent before the nodes matched may never arrive.
         now_ns = self._now_ns()
         for node in self.nodes:
-            counter = MessageCounter.of(node, _clock_topic(node), fixed=True)
+            counter = MessageCounter.of(node, clock_topic(node), fixed=True)
             counter.wrap_new()  # entities made since it was last looked at
             answer = self._answers.get(node)
             if answer is None:  # it joins
@@ -220,9 +220,3 @@ class Lockstep:
 
     def _now_ns(self):
         return self.clock_owner.now_ns() if self.clock_owner is not None else 0
-
-
-def _clock_topic(node):
-    """Return the clock topic node runs on (its TimeSource's subscription, remapped or not)."""
-    return next((sub.topic_name for sub in node.subscriptions if sub.msg_type is ClockMsg),
-                '/clock')
