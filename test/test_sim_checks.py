@@ -22,11 +22,13 @@ publishes on the same clock topic, and about a publisher on a robot's ``cmd_vel`
 another message type, which DDS never matches.  When it goes on without a message a
 participant sent, it says which publishers of that topic its discovery knows (on a lossy link
 one side can match a writer seconds before the other, and what is sent meanwhile never
-arrives).
+arrives).  A tap whose Python package is missing (MCAP, Foxglove, the browser view) is named
+with the package to install, and the simulator runs without it.
 """
 
 import os
 import re
+import sys
 import time
 
 from geometry_msgs.msg import Twist
@@ -428,3 +430,28 @@ def test_a_publisher_of_another_type_on_a_robots_cmd_vel_is_named_once(
     assert len(warnings()) == 1, log
     assert ('b: A publisher on /b/cmd_vel sends geometry_msgs/msg/TwistStamped, but this '
             'simulator takes geometry_msgs/msg/Twist (stamped:=true takes it)') in warnings()[0]
+
+
+HALTED = 'import of {} halted; None in sys.modules'
+
+
+@pytest.mark.parametrize('parameter,value,module,package,why', [
+    ('record_file', 'run.mcap', 'mcap', 'mcap',
+     "No module named 'mcap.well_known'; 'mcap' is not a package"),
+    ('foxglove_port', 8765, 'foxglove', 'foxglove-sdk', HALTED.format('foxglove')),
+    ('view_port', 9090, 'rerun', 'rerun-sdk', HALTED.format('rerun')),
+])
+def test_without_its_package_a_tap_is_named_and_the_simulator_runs(
+        graph, capfd, monkeypatch, tmp_path, parameter, value, module, package, why):
+    monkeypatch.setitem(sys.modules, module, None)
+    if parameter == 'record_file':
+        value = str(tmp_path / value)
+    sim = graph.sim(**{parameter: value})
+    graph.step_for(1.0)
+    assert not sim.taps
+    assert len(graph.odometry.odoms) >= 50  # it runs on
+    output = capfd.readouterr().err
+    assert (f'{parameter} needs the Python package {package} ({why}); pip install {package}. '
+            'Running without it.') in output, output
+    if parameter == 'record_file':
+        assert not os.path.exists(value)

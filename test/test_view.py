@@ -34,7 +34,6 @@ import shutil
 import signal
 import socket
 import struct
-import sys
 import time
 import urllib.request
 
@@ -271,17 +270,6 @@ def test_a_port_in_use_is_reported_and_the_simulator_runs(graph, capfd):
     output = capfd.readouterr().err
     assert 'view_port: [Errno 98] Address already in use. Running without it.' in output
     assert output.count('view_port') == 1, output
-
-
-def test_without_rerun_sdk_the_simulator_says_so_and_runs(graph, capfd, monkeypatch):
-    monkeypatch.setitem(sys.modules, 'rerun', None)
-    sim = graph.sim(view_port=9090)
-    graph.step_for(1.0)
-    assert not sim.taps
-    assert len(graph.odometry.odoms) >= 50
-    output = capfd.readouterr().err
-    assert ('view_port needs the Python package rerun-sdk (import of rerun halted; None in '
-            'sys.modules); pip install rerun-sdk. Running without it.') in output, output
 
 
 def test_the_rerun_program_ends_with_the_simulator(procs):
