@@ -443,6 +443,11 @@ HALTED = 'import of {} halted; None in sys.modules'
 ])
 def test_without_its_package_a_tap_is_named_and_the_simulator_runs(
         graph, capfd, monkeypatch, tmp_path, parameter, value, module, package, why):
+    # As if never installed, whatever an earlier test imported: the package, its submodules
+    # and the tap modules that hold them go from sys.modules (monkeypatch puts them back).
+    held = (f'{module}.', 'sim_diffdrive.taps.')
+    for name in [name for name in sys.modules if name.startswith(held)]:
+        monkeypatch.delitem(sys.modules, name)
     monkeypatch.setitem(sys.modules, module, None)
     if parameter == 'record_file':
         value = str(tmp_path / value)
