@@ -13,38 +13,25 @@
 # limitations under the License.
 
 """
-What every motion node shares: cmd_vel out, odometry in, a timer-driven state machine.
+What every motion node shares: parameters, cmd_vel out, odometry in, a timer-driven state machine.
 
-A motion waits until its robot is there: odometry has come, and the node that publishes it
-(the robot) is matched on cmd_vel, so a logger or a bridge listening to cmd_vel is not taken
-for the robot; with ``wait_for_odom`` false, any cmd_vel subscriber will do.  Then it runs
-on a timer on the node clock, so it works on wall time and on sim time alike, and finishes by
-publishing a zero Twist and one closing line that compares the goal with what odometry says was
-achieved.  ``shutdown_hook`` (called by runtime.run on every exit
-path) publishes the zero Twist again, so Ctrl-C or SIGTERM mid-motion stops the robot.
-
-MotionNode runs the states (MotionState) and the settling; its parts, each a plain object or
-function it owns or calls: RobotWatch (robot_watch.py) waits for the robot and watches it,
-closing.py writes the closing line, run_plot.py the plot_file.  The laws themselves are plain
-code: the closed loops, the lag compensation (CommandLog) and the odometry checks in
-controllers.py, the open-loop plans in plans.py (see timed_motion.py).
+A motion waits for its robot (RobotWatch), runs on a timer on the node clock (wall or sim time
+alike), and ends with a zero Twist and a closing line comparing the goal with what odometry says
+was achieved; ``shutdown_hook`` (runtime.run, every exit path) sends the zero Twist again.
 """
 
+import math
 import time
 
 from geometry_msgs.msg import Twist
 from geometry_msgs.msg import TwistStamped
-from motion_challenges.closing import closing_for
-from motion_challenges.closing import closing_line
-from motion_challenges.closing import DONE
 from motion_challenges.controllers import CommandLog
 from motion_challenges.controllers import odometry_fault
 from motion_challenges.controllers import Standstill
-from motion_challenges.motion_state import MotionState
+from motion_challenges.plotting import write_plot
+from motion_challenges.robot_watch import MotionState
 from motion_challenges.robot_watch import RobotWatch
 from motion_challenges.robot_watch import WATCHDOG_PERIOD_S
-from motion_challenges.run_plot import write_plot
-from motion_challenges.specs import COMMON_PARAMETERS
 from nav_msgs.msg import Odometry
 from rclpy.clock import Clock
 from rclpy.clock import ClockType
@@ -55,27 +42,103 @@ from sim_diffdrive.angles import YawAccumulator
 from sim_diffdrive.cdr import twist_message
 from sim_diffdrive.lockstep.participant import take_part
 from sim_diffdrive.parameters import declare
+from sim_diffdrive.parameters import Spec
 from sim_diffdrive.runtime import destroyed_if_refused
 from sim_diffdrive.runtime import EXIT_FAILED
 from sim_diffdrive.runtime import EXIT_OK
 from sim_diffdrive.throttle import Throttle
 
-__all__ = ['DONE', 'MotionNode', 'MotionState', 'closing_line']
+__all__ = ['DONE', 'MotionNode', 'MotionState', 'TimedMotion', 'closing_line']
 
 _NS = 1_000_000_000
 # How long to wait for the odometry that shows where the robot came to rest: this many control
 # periods, or odom_timeout if longer.
 _SETTLE_TICKS = 20
+# How a motion's closing line starts when it reached its goal (closing_line finds it).
+DONE = 'Done in '
+
+
+def rate_spec(default):
+    """Return the control rate parameter, rate_hz, with the motion's default."""
+    return Spec('rate_hz', default, 'Control rate [Hz] of the timer that publishes cmd_vel.',
+                low=0.0, high=1000.0, low_open=True)
+
+
+def out_and_back_specs(rate_hz):
+    """Return the parameters of timed_out_and_back, which odom_out_and_back shares."""
+    return (
+        Spec('goal_distance', 1.0, 'Distance of each straight leg [m].',
+             low=0.0, high=1000.0, low_open=True),
+        Spec('linear_speed', 0.2, 'Forward speed [m/s].', low=0.0, high=10.0, low_open=True),
+        Spec('angular_speed', 1.0, 'Turn rate [rad/s].', low=0.0, high=10.0, low_open=True),
+        Spec('goal_angle', math.pi, 'Angle of each turn [rad], counter-clockwise.',
+             low=0.0, high=100.0, low_open=True),
+        Spec('legs', 2, 'Number of drive-and-turn legs.', low=1, high=1000),
+        Spec('pause', 1.0, 'Pause after each stop [s].', low=0.0, high=3600.0),
+        rate_spec(rate_hz),
+    )
+
+
+# Every motion declares these besides its own.
+COMMON_PARAMETERS = (
+    Spec('start_timeout', 10.0,
+         'How long to wait for the robot (see wait_for_odom) before giving up [s, wall time], '
+         'from when the goal is known (typed).',
+         low=0.0, high=3600.0, low_open=True, live=True),
+    Spec('wait_for_odom', True,
+         'Start only once odometry has come and the node that publishes it subscribes cmd_vel '
+         '(the robot). false: any cmd_vel subscriber will do (a robot without odometry); the '
+         'open-loop motions then run blind and cannot confirm where the robot ended.'),
+    Spec('odom_timeout', 1.0,
+         'Stop and fail when no odometry came for this long mid-motion (closed loop), or, on '
+         'sim time, when simulated time stood still this long with no word from the simulator '
+         '[s, wall time].',
+         low=0.0, high=3600.0, low_open=True, live=True),
+    Spec('plot_file', '',
+         'Write a PNG of the run here: the path (start, end and goal) beside the heading and '
+         'the commanded and achieved speeds over time; empty = no plot. Needs matplotlib.',
+         live=True),
+    Spec('stamped', False,
+         'Publish geometry_msgs/TwistStamped, stamped with the node clock, instead of Twist '
+         "(ros2_control's diff_drive_controller takes only TwistStamped)."),
+    Spec('frame_id', 'base_footprint', 'With stamped: frame_id of the commands.', live=True),
+)
+
+
+def closing_for(sim_s, wall_s, achieved, measured, wait_for_odom):
+    """
+    Return (exit code, closing line) of a run that stopped sim_s [s] (wall_s wall) after its start.
+
+    achieved is the motion's summary, measured whether odometry came after the stop, and
+    wait_for_odom whether the robot was to publish odometry at all.
+    """
+    if measured:
+        return EXIT_OK, f'{DONE}{sim_s:.3f} s ({wall_s:.3f} s wall): {achieved}'
+    if not wait_for_odom:
+        return EXIT_OK, (f'Sent the whole plan in {sim_s:.3f} s ({wall_s:.3f} s wall) to a '
+                         f'robot without odometry: {achieved}')
+    return EXIT_FAILED, (f'Stopped after {sim_s:.3f} s, but no odometry came after the stop: '
+                         'where the robot ended is unknown (is the simulator still running?)')
+
+
+def closing_line(output):
+    """Return a motion's closing line ('Done in ...') from its output, or its last error line."""
+    lines = output.splitlines()
+    for line in reversed(lines):
+        if DONE in line:
+            return line
+    for line in reversed(lines):
+        if '[ERROR]' in line or 'Error' in line:
+            return line
+    return lines[-1] if lines else ''
 
 
 class MotionNode(Node):
     """
     Base class: subclasses set ``needs_odom`` and implement ``begin``, ``control``, ``summary``.
 
-    ``control(now_ns)`` is called every tick once started; it returns (linear, angular) to
-    publish, or None when the motion is complete.  On sim time it takes part in the
-    simulator's lockstep, on its own or, given ``participant``, answering with that
-    participant's other nodes (motion_fleet.py: one answer per step for a whole fleet).
+    ``control(now_ns)`` returns (linear, angular) to publish each tick, or None when done.  On
+    sim time the node takes part in the lockstep on its own or through ``participant``.
     """
 
     needs_odom = False
@@ -83,7 +146,7 @@ class MotionNode(Node):
     # at them (0: it takes a command at once), as the closed loops predict (CommandLog).
     robot_accel = (0.0, 0.0)
     # How long shutdown_hook waits for the final stop to be acknowledged [s, wall time]; a
-    # fleet of motions in one process sets 0 and waits once for all (motion_fleet.py).
+    # fleet sets 0 and waits once for all.
     stop_ack_timeout = 0.2
 
     def __init__(self, node_name, specs, participant=None, **kwargs):
@@ -104,7 +167,7 @@ class MotionNode(Node):
         self.start_odom = None
         self.turned = YawAccumulator()
         self.commands = CommandLog()
-        self._standstill = Standstill()  # a closed loop's robot that does not move as commanded
+        self._standstill = Standstill()
         self.state = MotionState.WAITING
         self.done = False
         self.exit_code = None
@@ -113,8 +176,6 @@ class MotionNode(Node):
         self._wall_begun = None
         self._primed = False
         self._tick_timer = None
-        # Waiting for the robot and watching it; on sim time its odometry waits in the watch's
-        # queue for the first tick after it.
         self.watch = RobotWatch(self, self._odom_topic, self._use_odom, self._distrust)
         # Waiting is timed on the wall clock: on sim time, node timers do not fire until the
         # simulator publishes /clock, and a missing simulator is exactly what to report.
@@ -143,8 +204,6 @@ class MotionNode(Node):
     def odometry_samples(self):
         """Return (stamp_ns, yaw, linear, angular) of the same odometry, for plot_file."""
         return [(o.stamp_ns, o.yaw, *o.twist) for o in self.run_odoms]
-
-    # -- lifecycle ---------------------------------------------------------------------------
 
     def ready(self):
         """Start waiting for the robot and then move (called once the goal is known)."""
@@ -183,8 +242,6 @@ class MotionNode(Node):
                         f'Not acknowledged within {self.stop_ack_timeout:g} s: {unheard} (a '
                         'subscriber is gone or stalled, or the link is lossy)')
 
-    # -- helpers for subclasses --------------------------------------------------------------
-
     def now_ns(self):
         return self.get_clock().now().nanoseconds
 
@@ -203,7 +260,7 @@ class MotionNode(Node):
         now_ns = self.now_ns()
         self.commands.add(now_ns, linear, angular)
         if self.state in (MotionState.RUNNING, MotionState.SETTLING):
-            self.sent_commands.append((now_ns, float(linear), float(angular)))
+            self.sent_commands.append((now_ns, linear, angular))
 
     def stop_robot(self):
         self.publish_command(0.0, 0.0)
@@ -214,11 +271,9 @@ class MotionNode(Node):
                                      self.robot_accel)
 
     def progress(self, text):
-        """Log text, called each tick: a line a second at most (sim_diffdrive/throttle.py)."""
+        """Log text, called each tick: a line a second at most."""
         if self._progress_log.allows():
             self.get_logger().info(text)
-
-    # -- callbacks ---------------------------------------------------------------------------
 
     def _on_odom(self, msg):
         self.watch.on_odom(msg)
@@ -289,7 +344,6 @@ class MotionNode(Node):
             self._settle(now_ns)
 
     def _settle(self, now_ns):
-        # Report the pose from odometry measured after the stop took effect, if there is any.
         fresh = self.odom is not None and self.odom.stamp_ns > self._stop_ns
         # Long enough for a robot whose odometry is much slower than the control rate; on the
         # node clock, so a loaded machine on sim time waits no less.
@@ -304,8 +358,6 @@ class MotionNode(Node):
                                      self.params.wait_for_odom))
             if self.params.plot_file:
                 write_plot(self, end_odom, achieved)
-
-    # -- for subclasses ----------------------------------------------------------------------
 
     def begin(self, now_ns):
         """Prepare the motion; called on the first tick once the robot is there."""
@@ -322,3 +374,51 @@ class MotionNode(Node):
         if self.start_odom is None or end_odom is None:
             return 'no odometry, achieved pose unknown'
         return end_odom.error_text(*self.goal_pose(self.start_odom))
+
+
+class TimedMotion(MotionNode):
+    """
+    An open-loop motion: follows the PiecewisePlan its subclass returns from ``plan()``.
+
+    Each tick publishes the plan's mean command until the next tick, so the commanded integral
+    equals the plan's.  On sim time the next tick is known (the first clock step at or after it
+    is due); on wall time ticks land late, so the last tick arms a one-shot timer for the plan's
+    end and the final stop is sent then.
+    """
+
+    def plan(self):
+        raise NotImplementedError
+
+    def begin(self, now_ns):
+        self._plan = self.plan()
+        self._end_timer = None
+
+    def elapsed(self, now_ns):
+        return (now_ns - self.start_ns) / _NS
+
+    def control(self, now_ns):
+        t = self.elapsed(now_ns)
+        if self._plan.finished(t):
+            return None
+        end = self._plan.duration
+        if not self.sim_time and t + self.period >= end:
+            if self._end_timer is None:
+                self._end_timer = self.create_timer(end - t, self._on_plan_end)
+            return self._plan.average(t, end)
+        return self._plan.average(t, t + self._until_next_tick_s())
+
+    def _until_next_tick_s(self):
+        """Return how long this tick's command holds [s]: until the next tick fires."""
+        if self.lockstep is None:
+            return self.period
+        step_ns = self.lockstep.clock_step_ns
+        due_ns = self.lockstep.until_next_call_ns(self._tick_timer)
+        if not step_ns or due_ns is None:
+            return self.period
+        # The clock reaches the next tick's time in whole steps of its last step's size.
+        return -(-due_ns // step_ns) * step_ns / _NS
+
+    def _on_plan_end(self):
+        self._end_timer.cancel()
+        if self.state == MotionState.RUNNING:
+            self.stop_robot()

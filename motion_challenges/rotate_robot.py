@@ -15,16 +15,15 @@
 """
 ``rotate_robot``: turn in place by a typed (or given) angle at a typed (or given) speed.
 
-A port of The Construct's "ROS Mini Challenge #1" ``rotate_robot.py``.  It asks the same three
-questions, unless the answer was given as a parameter, then turns and stops.  ``mode`` picks
-open loop (``timed``: integral-exact on the node clock) or closed loop (``odom``: accumulated
-wrapped yaw from odometry, so 720 degrees is two turns, slowing down near the goal).
+``mode``: open loop (``timed``) or closed loop on accumulated odometry yaw (``odom``).
 """
 
 import math
 import sys
 
 from motion_challenges.controllers import SpinController
+from motion_challenges.motion_node import rate_spec
+from motion_challenges.motion_node import TimedMotion
 from motion_challenges.plans import rotation_end
 from motion_challenges.plans import rotation_plan
 from motion_challenges.prompts import ask_rotation
@@ -32,8 +31,6 @@ from motion_challenges.prompts import InputEnded
 from motion_challenges.prompts import MAX_ANGLE_DEG
 from motion_challenges.prompts import MAX_ANGULAR_SPEED_DEG
 from motion_challenges.prompts import stream_writer
-from motion_challenges.specs import rate_spec
-from motion_challenges.timed_motion import TimedMotion
 from sim_diffdrive.parameters import Spec
 from sim_diffdrive.runtime import destroyed_if_refused
 from sim_diffdrive.runtime import run
@@ -63,7 +60,7 @@ PARAMETERS = (
 
 
 class RotateRobot(TimedMotion):
-    """Turn in place by ``angle_deg`` at ``angular_speed_deg`` (see the module docstring)."""
+    """Turn in place by ``angle_deg`` at ``angular_speed_deg``."""
 
     def __init__(self, **kwargs):
         super().__init__('rotate_robot', PARAMETERS, **kwargs)
