@@ -16,12 +16,9 @@
 Where else the simulator's traffic goes: an MCAP file, Foxglove, a browser (view_port).
 
 A tap has a ``name``, ``wants_path`` (build the path message even with no DDS subscriber),
-``write(topic, msg, stamp_ns)`` for every command heard and every odometry, /tf, /clock and
-path message published (a message, or the CDR bytes that crossed DDS), ``close()``, and
-optionally ``step(stamp_ns, world)`` once per odometry publish with the whole sim/world.py
-World, to draw every robot at once.  Each needs an optional package (mcap, foxglove-sdk,
-rerun-sdk): when it is missing, or a file or port cannot be had, the simulator says so once
-and runs without it; a tap that fails while writing is reported once and dropped.
+``write(topic, msg, stamp_ns)`` (a message or its CDR bytes), ``close()``, and optionally
+``step(stamp_ns, world)`` once per odometry publish.  A tap whose package, file or port is
+missing, or that fails while writing, is reported once and the simulator runs without it.
 """
 
 from sim_diffdrive.parameters import Spec
@@ -53,7 +50,6 @@ class Taps:
         self._changed()
 
     def _changed(self):
-        # Whether some tap builds the path message even with no DDS subscriber (read per step).
         self.wants_path = any(tap.wants_path for tap in self._taps)
 
     def __bool__(self):

@@ -15,25 +15,14 @@
 """
 The run, live in a browser (view_port): Rerun's web viewer, fed on simulated time.
 
-``BrowserView`` starts the rerun-sdk wheel's ``rerun`` program as a child listening on
-127.0.0.1 only (gRPC on view_port + 1 when free, so the address stays the same from run to
-run), serves the page on ``view_port`` (view_page.py) and logs one recording per run:
-
-- ``world/robots``, ``world/heading``: each robot as a box and an arrow along its heading,
-  in its odometry frame (with map_file: the map's), seen from above, x right and y up (REP 103);
-- ``world/map`` (with map_file): the obstacle cells, static; ``world/scan``: every robot's
-  newest scan as hit points, in the robot's colour;
-- ``world/paths``: each robot's path, a frame sending only the piece since the last one;
-  a jump (a reset) is not joined by a line;
-- ``speed/linear``, ``speed/angular``: achieved and commanded speed of each robot.
-
-The simulator's thread only copies each step's arrays; a thread sends frames at most 30 times
-a wall second with every step since the last, so the cost does not grow with
-real_time_factor, and each kind of shape goes out in one call for all robots (one entity per
-robot costs about a millisecond per robot-step).  The program runs with a configuration
-directory of its own with analytics disabled (``rerun analytics disable``), so the user's
-Rerun configuration is neither read nor changed; it stops with close() and, on Linux, with
-the simulator's death (``setpriv --pdeathsig``).
+``BrowserView`` starts the wheel's ``rerun`` program on 127.0.0.1 only (gRPC on view_port + 1
+when free), serves the page on ``view_port`` (view_page.py) and logs ``world/robots``,
+``world/heading``, ``world/map``, ``world/scan``, ``world/paths`` (broken at a jump) and
+``speed/linear``, ``speed/angular`` (achieved and commanded).  The simulator's thread only
+copies each step's arrays; a thread sends frames at most 30 times a wall second, each kind of
+shape in one call for all robots (one entity per robot costs about 1 ms per robot-step).  The
+program gets a configuration directory of its own with analytics disabled, and dies with the
+simulator (``setpriv --pdeathsig``).
 """
 
 import atexit
@@ -79,7 +68,7 @@ _LEGEND_ROBOTS = 1
 
 
 class BrowserView:
-    """A tap (see taps/__init__.py) drawing every robot in Rerun's web viewer."""
+    """A tap drawing every robot in Rerun's web viewer."""
 
     name = 'view_port'
     wants_path = False
@@ -128,8 +117,6 @@ class BrowserView:
         atexit.register(self.close)
         node.get_logger().info(f'Browser view: open {self.url}')
 
-    # -- the rerun program ----------------------------------------------------------------
-
     def _start_rerun(self, program, host, grpc_port, files_port):
         env = dict(os.environ, XDG_CONFIG_HOME=os.path.join(self._home, 'config'),
                    XDG_DATA_HOME=os.path.join(self._home, 'data'), TELEMETRY_ENABLED='false')
@@ -165,8 +152,6 @@ class BrowserView:
             return 'no output'
         return lines[-1] if lines else 'no output'
 
-    # -- the simulator's side: a few microseconds per step ---------------------------------
-
     def write(self, topic, msg, stamp_ns):
         """Keep a robot's scan for step() to draw from the pose of the step it precedes."""
         row = self._scan_rows.get(topic)
@@ -199,8 +184,6 @@ class BrowserView:
         """Return the newest scan not drawn yet, or None (with the lock held)."""
         scan, self._scan = self._scan, None
         return scan
-
-    # -- the sending thread: at most FRAME_PERIOD_S apart -----------------------------------
 
     def _send_frames(self):
         while not self._stop.wait(FRAME_PERIOD_S):

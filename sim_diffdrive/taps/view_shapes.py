@@ -12,12 +12,7 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""
-What the browser view draws, as numpy arrays (no ROS, no Rerun): paths, scans, walls, colours.
-
-view.py hands these to Rerun: each robot's path as strips that break where it jumped (an
-initialpose, a reset), each scan's hit points, a map's walls as a few boxes per row.
-"""
+"""What the browser view draws, as numpy arrays (no ROS, no Rerun): paths, scans, walls."""
 
 import numpy as np
 
@@ -32,8 +27,7 @@ def path_strips(stamps, xs, ys, linear):
     """
     Return each robot's path through xs, ys (count, points) as strips (count, points, 3).
 
-    At a step longer than the robot can have driven (a reset), its points before are moved
-    onto the point after, so no segment joins the jump.  None with fewer than two points.
+    Points before a jump are moved onto the point after it, so no segment joins the jump.
     """
     if xs.shape[1] < 2:
         return None
@@ -48,12 +42,7 @@ def path_strips(stamps, xs, ys, linear):
 
 
 def scan_points(ranges, angles, x, y, yaw):
-    """
-    Return the hit points of scans, (points (n, 2), owners (n,)): each robot's in one frame.
-
-    ranges is (robots, beams), angles (beams,) relative to the heading, x, y, yaw (robots,)
-    the scanners' poses in that frame; a beam without a finite range gives no point.
-    """
+    """Return the finite hits of scans (robots, beams) from poses x, y, yaw: (points, owners)."""
     ranges = np.asarray(ranges, dtype=float)
     owners, beams = np.nonzero(np.isfinite(ranges))
     hit = ranges[owners, beams]
@@ -65,11 +54,7 @@ def scan_points(ranges, angles, x, y, yaw):
 
 
 def solid_boxes(grid):
-    """
-    Return a map's obstacle cells as boxes, (centers (n, 3), half_sizes (n, 3)), map frame.
-
-    One box per run of obstacle cells along a row, turned by the map origin's yaw.
-    """
+    """Return a map's obstacle cells as boxes, one per run along a row: (centers, half_sizes)."""
     solid = np.asarray(grid.solid, dtype=np.int8)
     edges = np.diff(np.pad(solid, ((0, 0), (1, 1))), axis=1)
     rows, starts = np.nonzero(edges == 1)
