@@ -21,6 +21,8 @@ A tap has a ``name``, ``wants_path`` (build the path message even with no DDS su
 missing, or that fails while writing, is reported once and the simulator runs without it.
 """
 
+import importlib
+
 from sim_diffdrive.parameters import Spec
 
 TAP_PARAMETERS = (
@@ -94,24 +96,24 @@ class Taps:
             self._node.get_logger().error(f'{tap.name}: closing failed: {error}')
 
 
+# Each tap's parameter, the package it needs, its module and class (imported only when asked).
+_TAPS = (
+    ('record_file', 'mcap', 'recorder', 'McapRecorder'),
+    ('foxglove_port', 'foxglove-sdk', 'foxglove_live', 'FoxgloveLive'),
+    ('view_port', 'rerun-sdk', 'view', 'BrowserView'),
+)
+
+
 def open_taps(node):
     """Return the Taps node.params ask for (record_file, foxglove_port, view_port)."""
-    p = node.params
-    taps = []
-    if p.record_file:
-        taps.append(_open(node, 'record_file', 'mcap', lambda: _recorder()(p.record_file, node)))
-    if p.foxglove_port:
-        taps.append(_open(node, 'foxglove_port', 'foxglove-sdk',
-                          lambda: _foxglove()(p.foxglove_port, node)))
-    if p.view_port:
-        taps.append(_open(node, 'view_port', 'rerun-sdk',
-                          lambda: _browser_view()(p.view_port, node)))
+    taps = [_open(node, *tap) for tap in _TAPS if getattr(node.params, tap[0])]
     return Taps(node, [tap for tap in taps if tap is not None])
 
 
-def _open(node, parameter, package, make):
+def _open(node, parameter, package, module, name):
     try:
-        return make()
+        tap_class = getattr(importlib.import_module(f'sim_diffdrive.taps.{module}'), name)
+        return tap_class(getattr(node.params, parameter), node)
     except ImportError as error:
         node.get_logger().error(
             f'{parameter} needs the Python package {package} ({error}); pip install {package}. '
@@ -119,18 +121,3 @@ def _open(node, parameter, package, make):
     except OSError as error:
         node.get_logger().error(f'{parameter}: {error}. Running without it.')
     return None
-
-
-def _recorder():
-    from sim_diffdrive.taps.recorder import McapRecorder
-    return McapRecorder
-
-
-def _foxglove():
-    from sim_diffdrive.taps.foxglove_live import FoxgloveLive
-    return FoxgloveLive
-
-
-def _browser_view():
-    from sim_diffdrive.taps.view import BrowserView
-    return BrowserView

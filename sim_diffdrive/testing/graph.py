@@ -23,6 +23,7 @@ each step advances the clock one simulator step, then spins until every message 
 handled and no timer is due, so an answer lands on its step whatever the machine's load.
 """
 
+import collections
 import fcntl
 import itertools
 import os
@@ -294,7 +295,7 @@ class SimGraph(Lockstep):
         super().__init__(executor_class(context=context))
         self.context = context
         self._probes = {}  # robot name (None: the one on odom) -> listening Probe
-        self._scans = {}  # robot name -> its _LatestScan
+        self._scans = {}  # robot name -> its latest LaserScan (a deque of one)
 
     def __enter__(self):
         return self
@@ -372,15 +373,17 @@ class SimGraph(Lockstep):
 
     def scan(self, robot=None):
         """Return the latest LaserScan the graph has seen (robot's, if named), or None."""
-        return self._listen_to_scan(robot).msg
+        latest = self._listen_to_scan(robot)
+        return latest[0] if latest else None
 
     def _listen_to_scan(self, robot=None):
         latest = self._scans.get(robot)
         if latest is None:
-            latest = self._scans[robot] = _LatestScan()
+            latest = self._scans[robot] = collections.deque(maxlen=1)
             node = Node('sim_graph_scan', namespace=robot, context=self.context,
                         parameter_overrides=_overrides({'use_sim_time': True}))
-            node.create_subscription(LaserScan, 'scan', latest.take, 10)
+            # A lambda: rclpy reads the callback's signature, which a builtin lacks.
+            node.create_subscription(LaserScan, 'scan', lambda msg: latest.append(msg), 10)
             self.add(node)
         return latest
 
@@ -405,16 +408,6 @@ class SimGraph(Lockstep):
         self._scans = {}
         if self._own_context:
             rclpy.try_shutdown(context=self.context)
-
-
-class _LatestScan:
-    """The latest LaserScan a listener took (msg: None until the first)."""
-
-    def __init__(self):
-        self.msg = None
-
-    def take(self, msg):
-        self.msg = msg
 
 
 def _overrides(params):
