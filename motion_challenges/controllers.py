@@ -85,11 +85,7 @@ class CommandLog:
             entries.popleft()
 
     def predict(self, since_ns, now_ns, velocity=(0.0, 0.0), accel=(0.0, 0.0)):
-        """
-        Return ((metres, radians), (linear, angular)): the robot's way and speed at now_ns.
-
-        From since_ns, when it went at velocity, under acceleration limits accel (0: none).
-        """
+        """Return the robot's ((metres, radians), (linear, angular)) from since_ns to now_ns."""
         (linear, angular), (speed, turn_rate) = (0.0, 0.0), velocity
         linear_accel, angular_accel = accel
         ends = itertools.chain(itertools.islice(self._entries, 1, None), ((now_ns,),))

@@ -109,8 +109,7 @@ def closing_for(sim_s, wall_s, achieved, measured, wait_for_odom):
     """
     Return (exit code, closing line) of a run that stopped sim_s [s] (wall_s wall) after its start.
 
-    achieved is the motion's summary, measured whether odometry came after the stop, and
-    wait_for_odom whether the robot was to publish odometry at all.
+    measured: whether odometry came after the stop.
     """
     if measured:
         return EXIT_OK, f'{DONE}{sim_s:.3f} s ({wall_s:.3f} s wall): {achieved}'

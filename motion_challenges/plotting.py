@@ -191,11 +191,7 @@ def draw_series(heading_axes, linear_axes, angular_axes, series, legend=True):
 
 
 def plot_run(filename, trajectory, start=None, end=None, goal=None, title='', series=None):
-    """
-    Write one run to filename as a PNG; raises ImportError without matplotlib.
-
-    With series (a RunSeries, see time_series) the heading and speeds go beside the path.
-    """
+    """Write one run to filename as a PNG (with series: heading and speeds beside the path)."""
     try:
         import matplotlib
     except ImportError:

@@ -217,11 +217,7 @@ class OdometryLayout(_Layout):
 
 
 class TransformLayout(_Layout):
-    """
-    The CDR bytes of a tf2_msgs/TFMessage with fixed frames; ``serialize`` fills in the rest.
-
-    ``frames`` holds (frame_id, child_frame_id) per transform; z and rotations but about z are 0.
-    """
+    """The CDR bytes of a TFMessage of fixed (frame_id, child_frame_id) frames, turned about z."""
 
     def __init__(self, frames):
         body = bytearray(struct.pack('<I', len(frames)))

@@ -108,11 +108,7 @@ def arcs(linear, angular, target_linear, target_angular, max_linear_accel, max_a
 
 
 class UnicycleModel:
-    """
-    A unicycle driven by velocity commands, advanced piecewise: sim.world's one-robot reference.
-
-    Callers ``advance(dt)`` up to each new command before ``command()``.
-    """
+    """A unicycle driven by velocity commands, advanced piecewise: sim.world's one-robot twin."""
 
     def __init__(self, x=0.0, y=0.0, yaw=0.0, max_linear_speed=0.0, max_angular_speed=0.0,
                  max_linear_accel=0.0, max_angular_accel=0.0, ramp_step=0.001):

@@ -177,7 +177,7 @@ def declare(node, specs, on_change=None):
             node.set_descriptor(spec.name, descriptor)
     live = {spec.name: spec for spec in specs if spec.live}
     if live:
-        _LiveParameters(node, live, on_change).attach()
+        _LiveParameters(node, live, on_change)
     _clock_chosen_at_start(node)
     return Values(node, specs)
 
@@ -223,10 +223,7 @@ class _LiveParameters:
         self.specs = specs
         self.on_change = on_change
         self._refused = {}  # parameter name -> refusal, for the set under way
-
-    def attach(self):
-        node = self.node
-        node._live_parameters = live_parameters(node) | set(self.specs)
+        node._live_parameters = live_parameters(node) | set(specs)
         node.add_pre_set_parameters_callback(self._convert)
         node.add_on_set_parameters_callback(self._refuse)
         node.add_post_set_parameters_callback(self._apply)

@@ -38,11 +38,7 @@ RobotView = collections.namedtuple('RobotView', 'name odom_frame base_frame topi
 
 
 def robot_views(namespace='', robots=()):
-    """
-    Return a RobotView per robot (one unnamed for no robots): its frames and topic namespace.
-
-    Frames as unicycle_sim names them (``/site`` -> ``site/odom``, ``robot1/site/odom``).
-    """
+    """Return a RobotView per robot (one unnamed for none): frames as unicycle_sim names them."""
     prefix = namespace.strip('/')
     views = []
     for name in robots or ['']:

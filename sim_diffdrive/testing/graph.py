@@ -310,12 +310,7 @@ class SimGraph(Lockstep):
         return _overrides(params)
 
     def sim(self, stepped=True, **params):
-        """
-        Start a simulator with the given parameters (any of unicycle_sim's).
-
-        stepped (the default): it owns time and the graph steps it; stepped=False: it runs on
-        its own timers.
-        """
+        """Start a simulator with any of unicycle_sim's params; the graph steps it if stepped."""
         params.setdefault('publish_clock', stepped)
         if stepped and (not params['publish_clock'] or self.clock_owner is not None):
             raise ValueError('a stepped simulator owns the clock: one per graph, with '

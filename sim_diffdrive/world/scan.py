@@ -186,11 +186,7 @@ def _cast_discs(ranges, x, y, yaw, angles, radius, reach):
 
 
 class Scanner:
-    """
-    A 2-D laser scanner over a GridMap, for all robots at once, with LaserScan's fields.
-
-    Noise is Gaussian, from one seeded generator per Scanner: one seed, bit-identical scans.
-    """
+    """A 2-D laser scanner over a GridMap for all robots, LaserScan's fields; seeded noise."""
 
     def __init__(self, grid, beams=360, range_min=0.12, range_max=3.5, noise_std=0.0, seed=0,
                  radius=0.0):
