@@ -13,14 +13,11 @@
 # limitations under the License.
 
 """
-Test robot code against the simulator: an in-process graph stepped in lockstep.
+Test robot code against the simulator: SimGraph, an in-process graph stepped in lockstep.
 
-``SimGraph`` is the harness of the project's tests, demo and bench, and the ``sim_graph``
-fixture: build nodes with ``graph.context``, ``graph.sim(**params)``, ``graph.add(node)``, then
-``graph.step_for(seconds)`` or ``graph.step_until(predicate, sim_timeout)`` and read
-``graph.pose()``.  Its engine, ``Lockstep``, steps a simulator built with ``stepped=True``:
-each step advances the clock one simulator step, then spins until every message sent has been
-handled and no timer is due, so an answer lands on its step whatever the machine's load.
+Its engine, ``Lockstep``, steps a simulator built with ``stepped=True``: each step advances the
+clock one simulator step, then spins until every message sent has been handled and no timer is
+due, so an answer lands on its step whatever the machine's load.
 """
 
 import collections
