@@ -19,8 +19,8 @@ import math
 from motion_challenges.controllers import Approach
 from motion_challenges.controllers import OutAndBack
 from motion_challenges.motion_node import MotionNode
-from motion_challenges.motion_node import out_and_back_specs
 from motion_challenges.plans import out_and_back_end
+from motion_challenges.specs import out_and_back_specs
 from sim_diffdrive.parameters import Spec
 from sim_diffdrive.runtime import run
 

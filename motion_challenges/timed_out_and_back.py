@@ -16,10 +16,10 @@
 
 import math
 
-from motion_challenges.motion_node import out_and_back_specs
-from motion_challenges.motion_node import TimedMotion
 from motion_challenges.plans import out_and_back_end
 from motion_challenges.plans import out_and_back_plan
+from motion_challenges.specs import out_and_back_specs
+from motion_challenges.timed_motion import TimedMotion
 from sim_diffdrive.runtime import run
 
 
