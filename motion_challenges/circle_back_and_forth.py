@@ -12,13 +12,7 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""
-``circle_back_and_forth``: drive an arc and retrace it, flipping both signs every half period.
-
-A port of ``move_rob.py``: linear.x = angular.z = 0.5, both flipped every 15 s, so the robot
-drives a 1 m-radius arc and comes back along it.  Unlike the original it publishes one Twist
-with both parts per tick, on ``cmd_vel``, can stop after ``cycles`` and always stops on exit.
-"""
+"""``circle_back_and_forth``: move_rob.py's arc, retraced with both signs flipped."""
 
 import math
 
@@ -42,7 +36,7 @@ PARAMETERS = (
 
 
 class CircleBackAndForth(TimedMotion):
-    """Drive the arc out and back (see the module docstring)."""
+    """Drive the arc out and back."""
 
     def __init__(self, **kwargs):
         super().__init__('circle_back_and_forth', PARAMETERS, **kwargs)

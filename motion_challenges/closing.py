@@ -12,12 +12,7 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""
-A motion's closing line: the goal against what odometry says was achieved, and its exit code.
-
-``closing_for`` writes it when a run has settled; ``closing_line`` finds it again in a
-motion's output (tests, tools).
-"""
+"""A motion's closing line: its exit code and the words it ends with."""
 
 from sim_diffdrive.runtime import EXIT_FAILED
 from sim_diffdrive.runtime import EXIT_OK
@@ -28,11 +23,9 @@ DONE = 'Done in '
 
 def closing_for(sim_s, wall_s, achieved, measured, wait_for_odom):
     """
-    Return (exit code, closing line) of a run that stopped sim_s [s] after it started.
+    Return (exit code, closing line) of a run that stopped sim_s [s] (wall_s wall) after its start.
 
-    wall_s is the same on the wall clock, achieved the motion's summary (goal against
-    achieved), measured whether odometry came after the stop (the end pose is known), and
-    wait_for_odom whether the robot was to publish odometry at all.
+    measured: whether odometry came after the stop.
     """
     if measured:
         return EXIT_OK, f'{DONE}{sim_s:.3f} s ({wall_s:.3f} s wall): {achieved}'

@@ -13,13 +13,9 @@
 # limitations under the License.
 
 """
-The closed loops of the motions on plain numbers: poses, nanoseconds, speeds (no ROS imports).
+The closed loops of the motions on plain numbers (no ROS imports).
 
-A node converts its odometry to ``Pose``, logs what it publishes in a ``CommandLog``, and asks
-a ``SpinController`` or an ``OutAndBack`` what to command next; ``odometry_fault`` says when
-odometry cannot be trusted, ``Standstill`` when the robot does not move as commanded.  Units
-are SI (m, rad, s; times in integer nanoseconds of the node clock) and signs follow REP 103
-(counter-clockwise positive).
+SI units, times in integer nanoseconds of the node clock, REP 103 signs.
 """
 
 import collections
@@ -69,8 +65,6 @@ class CommandLog:
 
     Odometry stamped at s reports the pose at s; adding the integral of the commands since
     (each holds until the next) removes the lag that would make a closed loop overshoot.
-    Commands are kept by time: ``forget_before(s)`` drops those that ended before s, and none
-    is kept longer than horizon_ns behind the newest.
     """
 
     def __init__(self, horizon_ns=HORIZON_NS):
@@ -91,13 +85,7 @@ class CommandLog:
             entries.popleft()
 
     def predict(self, since_ns, now_ns, velocity=(0.0, 0.0), accel=(0.0, 0.0)):
-        """
-        Return ((metres, radians), (linear, angular)): the robot's way and speed at now_ns.
-
-        From since_ns, when it went at velocity, on the commands; accel (linear, angular) is
-        the robot's acceleration limit (plans.speed_ramp; 0: it takes each command at once).
-        Before the first command logged the robot is taken to stand still.
-        """
+        """Return the robot's ((metres, radians), (linear, angular)) from since_ns to now_ns."""
         (linear, angular), (speed, turn_rate) = (0.0, 0.0), velocity
         linear_accel, angular_accel = accel
         ends = itertools.chain(itertools.islice(self._entries, 1, None), ((now_ns,),))
@@ -116,9 +104,8 @@ def odometry_fault(last, pose, commands, tolerance=JUMP_TOLERANCE, velocity=(0.0
     """
     Return why odometry pose cannot follow odometry last, or '' when it can.
 
-    Time must not go back, and between the two stamps the robot must not have moved further
-    than commanded (CommandLog.predict from velocity, with acceleration limits accel), nor
-    turned more or the other way, as a restarted simulator back at its initial pose would.
+    Time must not go back, nor the robot move further than commanded, nor turn more or the
+    other way, as a restarted simulator back at its initial pose would.
     """
     if pose.stamp_ns < last.stamp_ns:
         return (f'Odometry went back in time from {last.stamp_ns / NS:.3f} s to '
@@ -139,11 +126,8 @@ class Standstill:
     """
     Tells a robot that stands still although commanded to move: pushed against a wall, say.
 
-    ``update(last, pose, commands, velocity, accel)`` with each odometry.  The count starts at
-    the first odometry interval in which the commands (CommandLog.predict from velocity) would
-    have moved the robot, and goes on while its pose stays within STILL_M and STILL_RAD of
-    where it was; after STUCK_S, with more than WAY_M or WAY_RAD commanded in all, it returns
-    why the robot is stuck (else '').  A pose that moves, or a stop, ends the count.
+    ``update`` with each odometry returns why the robot is stuck (else ''): it stayed within
+    STILL_M and STILL_RAD for STUCK_S while commanded more than WAY_M or WAY_RAD.
     """
 
     STILL_M = 1e-9
@@ -153,7 +137,7 @@ class Standstill:
     STUCK_S = 1.0
 
     def __init__(self):
-        self._since_ns = None  # the stamp from which it stood still while commanded, or None
+        self._since_ns = None  # since when it stood still while commanded
         self._way = (0.0, 0.0)  # metres and radians commanded since then
 
     def update(self, last, pose, commands, velocity=(0.0, 0.0), accel=(0.0, 0.0)):
@@ -177,11 +161,10 @@ class Standstill:
 
 class Approach:
     """
-    Nav2 Spin's speed law toward a goal distance or angle: full speed, then slow down onto it.
+    Nav2 Spin's speed law toward a goal distance or angle (plans.approach_speed).
 
-    ``speed(remaining, velocity)`` is plans.approach_speed (for a robot whose speed ramps at
-    robot_accel, now at velocity towards the goal), None once less than tolerance remains.
-    A min_speed above max_speed is taken as max_speed.
+    ``speed`` is None once less than tolerance remains; a min_speed above max_speed is taken
+    as max_speed.
     """
 
     def __init__(self, max_speed, min_speed, accel, period, tolerance=TOLERANCE,
@@ -206,9 +189,8 @@ class SpinController:
     """
     Turn in place by goal [rad], closed loop on the yaw turned so far (rotate_robot's odom mode).
 
-    ``turned`` is the accumulated yaw from odometry since the start (4 pi is two turns),
-    ``predicted`` and ``turn_rate`` the yaw turned since that odometry and the angular speed
-    now (CommandLog.predict); robot_accel is the robot's angular acceleration limit.
+    ``turned`` is the accumulated odometry yaw (4 pi is two turns), ``predicted`` and
+    ``turn_rate`` CommandLog.predict's yaw since that odometry and angular speed now.
     """
 
     def __init__(self, goal, clockwise, max_speed, min_speed, accel, period,
@@ -238,12 +220,9 @@ class Step(enum.Enum):
 
 class OutAndBack:
     """
-    rbx1's odom_out_and_back as a sequence: each leg drives, pauses, turns, pauses.
+    rbx1's odom_out_and_back as a sequence: each leg drives, pauses, turns, pauses (pause 0: none).
 
-    A drive ends at goal_distance from where it began, a turn at goal_angle turned
-    (counter-clockwise), both slowing down on their Approach; a pause after pause seconds (0:
-    no pauses).  Progress is odometry plus ``predicted`` (metres, radians) at ``velocity``
-    (linear, angular) now (CommandLog.predict).
+    Progress is odometry plus CommandLog.predict's ``predicted`` at ``velocity``.
     """
 
     def __init__(self, legs, goal_distance, goal_angle, pause, drive, turn):

@@ -15,14 +15,8 @@
 """
 ``motion_fleet``: one process runs one motion per robot, each in its robot's namespace.
 
-``-p robots:=[robot1,robot2]`` puts a motion node in ``/robot1`` and one in ``/robot2`` (under
-the fleet's namespace), publishing ``/robot1/cmd_vel`` and reading ``/robot1/odom``.
-``motions`` names the executable each robot runs (one for all, or one per robot).  The
-process's parameters reach every motion node (rclpy's global arguments): a params file can
-speak to all (``/**:``) or to one (``/robot1/odom_out_and_back:``).  The process ends when the
-last motion has finished, with the worst exit code; Ctrl-C stops every robot.
-
-``build_fleet`` builds the same motion nodes in any context, for tests and the benchmark.
+The process's parameters reach every motion node (rclpy's global arguments): a params file can
+speak to all (``/**:``) or to one (``/robot1/odom_out_and_back:``).
 """
 
 import time
@@ -68,12 +62,7 @@ def motion_classes():
 
 
 def fleet_plan(robots, motions, namespace='/'):
-    """
-    Return (robot, namespace, motion) for each robot, or raise ParameterError saying why not.
-
-    robots are names relative to namespace (``robot1``, ``site_a/robot1``), each a valid ROS
-    name and none twice; motions has one executable name for all robots or one per robot.
-    """
+    """Return (robot, namespace, motion) for each robot, or raise ParameterError saying why not."""
     if not robots:
         raise ParameterError("parameter 'robots' must name at least one robot, e.g. "
                              '-p robots:=[robot1,robot2]; got []')
@@ -117,11 +106,9 @@ def build_fleet(context, robots, motions, namespace='/', participant=None, **ove
     """
     Build one motion node per robot in context, each in its robot's namespace; return them.
 
-    On sim time each motion takes part in the lockstep on its own, or through ``participant``
-    (another node's lockstep Participant): then the process answers once a step.
-    ``overrides`` are parameters every motion gets (one ignores those it does not have); a
-    rotate_robot takes its answers from parameters only.  Raises ParameterError naming the
-    robot when a motion cannot start, after destroying the nodes built until then.
+    ``participant``: a lockstep Participant that answers for them all; ``overrides``:
+    parameters every motion gets.  Raises ParameterError naming the robot when a motion cannot
+    start, after destroying the nodes built until then.
     """
     parameter_overrides = [Parameter(name, value=value) for name, value in overrides.items()]
     nodes = []
@@ -172,9 +159,8 @@ class MotionFleet(Node):
     """
     The fleet: reads ``robots`` and ``motions``; ``build()`` makes the motions.
 
-    It has no ``done``, so runtime.run waits for the motions alone.  Its ``shutdown_hook`` runs
-    after theirs: it waits once for every robot's final stop to be acknowledged (not 0.2 s per
-    robot, one after another) and says how each motion ended.
+    It has no ``done``, so runtime.run waits for the motions alone; its ``shutdown_hook`` runs
+    after theirs and waits once for every robot's final stop to be acknowledged.
     """
 
     def __init__(self, **kwargs):

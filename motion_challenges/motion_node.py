@@ -13,21 +13,11 @@
 # limitations under the License.
 
 """
-What every motion node shares: cmd_vel out, odometry in, a timer-driven state machine.
+What every motion node shares: parameters, cmd_vel out, odometry in, a timer-driven state machine.
 
-A motion waits until its robot is there: odometry has come, and the node that publishes it
-(the robot) is matched on cmd_vel, so a logger or a bridge listening to cmd_vel is not taken
-for the robot; with ``wait_for_odom`` false, any cmd_vel subscriber will do.  Then it runs
-on a timer on the node clock, so it works on wall time and on sim time alike, and finishes by
-publishing a zero Twist and one closing line that compares the goal with what odometry says was
-achieved.  ``shutdown_hook`` (called by runtime.run on every exit
-path) publishes the zero Twist again, so Ctrl-C or SIGTERM mid-motion stops the robot.
-
-MotionNode runs the states (MotionState) and the settling; its parts, each a plain object or
-function it owns or calls: RobotWatch (robot_watch.py) waits for the robot and watches it,
-closing.py writes the closing line, run_plot.py the plot_file.  The laws themselves are plain
-code: the closed loops, the lag compensation (CommandLog) and the odometry checks in
-controllers.py, the open-loop plans in plans.py (see timed_motion.py).
+A motion waits for its robot (RobotWatch), runs on a timer on the node clock (wall or sim time
+alike), and ends with a zero Twist and a closing line comparing the goal with what odometry says
+was achieved; ``shutdown_hook`` (runtime.run, every exit path) sends the zero Twist again.
 """
 
 import time
@@ -40,10 +30,10 @@ from motion_challenges.closing import DONE
 from motion_challenges.controllers import CommandLog
 from motion_challenges.controllers import odometry_fault
 from motion_challenges.controllers import Standstill
-from motion_challenges.motion_state import MotionState
+from motion_challenges.plotting import write_plot
+from motion_challenges.robot_watch import MotionState
 from motion_challenges.robot_watch import RobotWatch
 from motion_challenges.robot_watch import WATCHDOG_PERIOD_S
-from motion_challenges.run_plot import write_plot
 from motion_challenges.specs import COMMON_PARAMETERS
 from nav_msgs.msg import Odometry
 from rclpy.clock import Clock
@@ -72,10 +62,8 @@ class MotionNode(Node):
     """
     Base class: subclasses set ``needs_odom`` and implement ``begin``, ``control``, ``summary``.
 
-    ``control(now_ns)`` is called every tick once started; it returns (linear, angular) to
-    publish, or None when the motion is complete.  On sim time it takes part in the
-    simulator's lockstep, on its own or, given ``participant``, answering with that
-    participant's other nodes (motion_fleet.py: one answer per step for a whole fleet).
+    ``control(now_ns)`` returns (linear, angular) to publish each tick, or None when done.  On
+    sim time the node takes part in the lockstep on its own or through ``participant``.
     """
 
     needs_odom = False
@@ -83,7 +71,7 @@ class MotionNode(Node):
     # at them (0: it takes a command at once), as the closed loops predict (CommandLog).
     robot_accel = (0.0, 0.0)
     # How long shutdown_hook waits for the final stop to be acknowledged [s, wall time]; a
-    # fleet of motions in one process sets 0 and waits once for all (motion_fleet.py).
+    # fleet sets 0 and waits once for all.
     stop_ack_timeout = 0.2
 
     def __init__(self, node_name, specs, participant=None, **kwargs):
@@ -104,7 +92,7 @@ class MotionNode(Node):
         self.start_odom = None
         self.turned = YawAccumulator()
         self.commands = CommandLog()
-        self._standstill = Standstill()  # a closed loop's robot that does not move as commanded
+        self._standstill = Standstill()
         self.state = MotionState.WAITING
         self.done = False
         self.exit_code = None
@@ -113,8 +101,6 @@ class MotionNode(Node):
         self._wall_begun = None
         self._primed = False
         self._tick_timer = None
-        # Waiting for the robot and watching it; on sim time its odometry waits in the watch's
-        # queue for the first tick after it.
         self.watch = RobotWatch(self, self._odom_topic, self._use_odom, self._distrust)
         # Waiting is timed on the wall clock: on sim time, node timers do not fire until the
         # simulator publishes /clock, and a missing simulator is exactly what to report.
@@ -143,8 +129,6 @@ class MotionNode(Node):
     def odometry_samples(self):
         """Return (stamp_ns, yaw, linear, angular) of the same odometry, for plot_file."""
         return [(o.stamp_ns, o.yaw, *o.twist) for o in self.run_odoms]
-
-    # -- lifecycle ---------------------------------------------------------------------------
 
     def ready(self):
         """Start waiting for the robot and then move (called once the goal is known)."""
@@ -183,8 +167,6 @@ class MotionNode(Node):
                         f'Not acknowledged within {self.stop_ack_timeout:g} s: {unheard} (a '
                         'subscriber is gone or stalled, or the link is lossy)')
 
-    # -- helpers for subclasses --------------------------------------------------------------
-
     def now_ns(self):
         return self.get_clock().now().nanoseconds
 
@@ -203,7 +185,7 @@ class MotionNode(Node):
         now_ns = self.now_ns()
         self.commands.add(now_ns, linear, angular)
         if self.state in (MotionState.RUNNING, MotionState.SETTLING):
-            self.sent_commands.append((now_ns, float(linear), float(angular)))
+            self.sent_commands.append((now_ns, linear, angular))
 
     def stop_robot(self):
         self.publish_command(0.0, 0.0)
@@ -214,11 +196,9 @@ class MotionNode(Node):
                                      self.robot_accel)
 
     def progress(self, text):
-        """Log text, called each tick: a line a second at most (sim_diffdrive/throttle.py)."""
+        """Log text, called each tick: a line a second at most."""
         if self._progress_log.allows():
             self.get_logger().info(text)
-
-    # -- callbacks ---------------------------------------------------------------------------
 
     def _on_odom(self, msg):
         self.watch.on_odom(msg)
@@ -289,7 +269,6 @@ class MotionNode(Node):
             self._settle(now_ns)
 
     def _settle(self, now_ns):
-        # Report the pose from odometry measured after the stop took effect, if there is any.
         fresh = self.odom is not None and self.odom.stamp_ns > self._stop_ns
         # Long enough for a robot whose odometry is much slower than the control rate; on the
         # node clock, so a loaded machine on sim time waits no less.
@@ -304,8 +283,6 @@ class MotionNode(Node):
                                      self.params.wait_for_odom))
             if self.params.plot_file:
                 write_plot(self, end_odom, achieved)
-
-    # -- for subclasses ----------------------------------------------------------------------
 
     def begin(self, now_ns):
         """Prepare the motion; called on the first tick once the robot is there."""

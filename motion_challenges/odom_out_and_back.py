@@ -12,14 +12,7 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""
-``odom_out_and_back``: rbx1's closed-loop level of out-and-back, measured on odometry.
-
-Each leg drives until the Euclidean distance from the leg's start reaches ``goal_distance``,
-then turns until the accumulated wrapped yaw reaches ``goal_angle``, slowing down near each
-goal (Nav2 Spin's law) and pausing after each stop.  Without odometry it never moves: it says
-so and gives up after ``start_timeout``.
-"""
+"""``odom_out_and_back``: rbx1's closed-loop out-and-back, on odometry (controllers.OutAndBack)."""
 
 import math
 
@@ -50,7 +43,7 @@ PARAMETERS = out_and_back_specs(50.0) + (
 
 
 class OdomOutAndBack(MotionNode):
-    """Out and back closed loop on odometry (see the module docstring)."""
+    """Out and back closed loop on odometry."""
 
     needs_odom = True
 

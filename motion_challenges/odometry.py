@@ -35,5 +35,4 @@ class OdomPose(Pose):
             stamp_ns = msg.header.stamp.sec * NS + msg.header.stamp.nanosec
             x, y, orientation, twist = p.x, p.y, (q.x, q.y, q.z, q.w), (t.linear.x, t.angular.z)
         super().__init__(x, y, yaw_from_quaternion(*orientation), stamp_ns)
-        # What odometry says the robot did, for plot_file: (linear.x, angular.z).
-        self.twist = twist
+        self.twist = twist  # (linear.x, angular.z)

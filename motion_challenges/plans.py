@@ -12,12 +12,7 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""
-Velocity plans for the timed motions and the speed law of the closed-loop ones (no ROS imports).
-
-Units are SI (m, rad, s) and signs follow REP 103: counter-clockwise is positive, so a clockwise
-turn has a negative angular speed.
-"""
+"""Velocity plans of the timed motions, the speed law of the closed loops (no ROS; SI, REP 103)."""
 
 import bisect
 from dataclasses import dataclass
@@ -64,9 +59,8 @@ class PiecewisePlan:
     """
     A sequence of constant velocity segments starting at t = 0, optionally repeated forever.
 
-    Before t = 0 and after the end the command is zero. ``average(t, t + period)`` is what a
-    timer tick at t should publish: the commanded integral then equals the plan's exactly, even
-    when a segment ends in the middle of a tick.
+    Zero before t = 0 and after the end.  ``average(t, t + period)`` is what a tick at t should
+    publish: the commanded integral then equals the plan's, even mid-segment.
     """
 
     def __init__(self, segments, repeat=False):
@@ -217,8 +211,7 @@ def approach_speed(remaining, max_speed, min_speed, accel, period, robot_accel=0
     Return the speed for a closed-loop motion with remaining distance or angle to go.
 
     Nav2 Spin's law clamp(sqrt(2 * accel * remaining), min_speed, max_speed), capped so that
-    the last control period ends on the goal: at remaining / period (robot_accel 0), or at
-    stopping_speed() for a robot whose speed ramps at robot_accel, now at velocity.
+    the last period ends on the goal (remaining / period, or stopping_speed() with robot_accel).
     """
     if math.isnan(remaining):
         raise ValueError('remaining must be a number, got nan')
@@ -237,12 +230,7 @@ def approach_speed(remaining, max_speed, min_speed, accel, period, robot_accel=0
 
 
 def speed_ramp(velocity, target, accel, dt):
-    """
-    Return (distance, velocity) after dt of a robot at velocity commanded target [m or rad].
-
-    Its speed ramps towards the command at accel (unicycle_sim's max_*_accel), then holds it;
-    accel 0: it takes the command at once.
-    """
+    """Return (distance, velocity) after dt of a robot at velocity ramping at accel to target."""
     if accel <= 0.0:
         return target * dt, target
     change = target - velocity
@@ -257,12 +245,10 @@ def stopping_speed(remaining, velocity, accel, period):
     """
     Return the command on which a ramping robot comes to rest after remaining [m or rad].
 
-    The command is held for one period and followed by 0; the robot's speed ramps at accel
-    from velocity (see speed_ramp()).  Commanded c <= velocity it goes c * period + ((velocity -
-    c)^2 + c^2) / (2 accel), and c >= velocity (reached within the period) c * (period +
-    velocity / accel) - velocity^2 / (2 accel): the c that makes this remaining.  0 when
-    braking at once already goes further; inf when no command it reaches within the period
-    would take it that far (any speed will do for now).
+    The command is held for one period, then 0 (see speed_ramp()).  Commanded c <= velocity
+    it goes c t + ((v - c)^2 + c^2) / (2 a), and c >= v c (t + v / a) - v^2 / (2 a): the c that
+    makes this remaining.  0 when braking at once goes further; inf when no command it reaches
+    within the period would take it that far (any speed will do for now).
     """
     a, t, v = accel, period, velocity
     lowest, highest = max(0.0, v - a * t), v + a * t
@@ -286,11 +272,7 @@ def _stopping_distance(command, velocity, accel, period):
 
 
 def final_pose(plan, x=0.0, y=0.0, yaw=0.0, t_end=None):
-    """
-    Return the pose (x, y, yaw), yaw in (-pi, pi], after following plan from (x, y, yaw).
-
-    Until t_end: the plan's end by default, required for a repeating plan.
-    """
+    """Return the pose after following plan from (x, y, yaw) until t_end (default: its end)."""
     if t_end is None:
         if plan.repeat:
             raise ValueError('a repeating plan needs t_end')

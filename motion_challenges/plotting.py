@@ -13,13 +13,9 @@
 # limitations under the License.
 
 """
-Draw a motion's run to a PNG (matplotlib is optional and imported only here).
+Draw a motion's run to a PNG: its path beside heading and speeds (matplotlib, imported lazily).
 
-A run is drawn as its path (x, y with start, end and goal poses) next to three panels over
-simulated time from the motion's start: the heading (unwrapped, so a turn of -720 deg ends at
--720 deg) with the goal heading, and the linear and angular speeds, commanded (the Twists sent,
-as steps: each holds until the next) and achieved (odometry's twist).  ``time_series`` prepares
-those series from the recorded samples and is plain code, tested without matplotlib.
+``time_series`` prepares the series from the recorded samples and is plain code.
 """
 
 from collections import namedtuple
@@ -195,11 +191,7 @@ def draw_series(heading_axes, linear_axes, angular_axes, series, legend=True):
 
 
 def plot_run(filename, trajectory, start=None, end=None, goal=None, title='', series=None):
-    """
-    Write one run to filename as a PNG; raises ImportError without matplotlib.
-
-    With series (a RunSeries, see time_series) the heading and speeds go beside the path.
-    """
+    """Write one run to filename as a PNG (with series: heading and speeds beside the path)."""
     try:
         import matplotlib
     except ImportError:
@@ -224,3 +216,24 @@ def plot_run(filename, trajectory, start=None, end=None, goal=None, title='', se
         figure.savefig(filename, dpi=100)
     finally:
         pyplot.close(figure)
+
+
+def write_plot(node, end_odom, achieved):
+    """Write a finished motion node's run to its plot_file (end_odom may be None); log it."""
+    start = node.start_odom
+    goal = node.goal_pose(start) if start else None
+    # The odometry the motion started on comes first: the heading starts from its yaw.
+    odometry = ([(start.stamp_ns, start.yaw, *start.twist)] if start else []) + [
+        s for s in node.odometry_samples if not start or s[0] > start.stamp_ns]
+    plot_file = node.params.plot_file
+    try:
+        plot_run(plot_file, node.trajectory,
+                 start=(start.x, start.y, start.yaw) if start else None,
+                 end=(end_odom.x, end_odom.y, end_odom.yaw) if end_odom else None,
+                 goal=goal, title=f'{node.get_name()}: {achieved}',
+                 series=time_series(odometry, node.sent_commands, node.start_ns,
+                                    goal[2] if goal else None))
+    except (ImportError, OSError) as error:
+        node.get_logger().error(f'Could not write plot_file: {error}')
+        return
+    node.get_logger().info(f'Wrote {plot_file}')

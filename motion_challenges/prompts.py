@@ -12,12 +12,7 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""
-Typed input for the rotate motion (no ROS imports).
-
-Port of The Construct's rotate_robot.py prompts, without its bugs: a bad answer is explained
-and asked again instead of crashing or leaving ``clockwise`` unset.
-"""
+"""Typed input for the rotate motion: a bad answer is explained and asked again (no ROS)."""
 
 from dataclasses import dataclass
 import math
@@ -74,11 +69,7 @@ def _check_positive(value, shown, what, max_value):
 
 
 def parse_positive_number(text, what, max_value):
-    """
-    Parse a positive, finite number no greater than max_value.
-
-    ``what`` names the value and its unit for the ValueError, which says what is accepted.
-    """
+    """Parse a positive, finite number up to max_value; ``what`` names it in the ValueError."""
     stripped = text.strip()
     accepted = _accepted(what, max_value)
     if not stripped:
@@ -133,10 +124,9 @@ def ask_rotation(read_line, write, angular_speed_deg=None, angle_deg=None, clock
     """
     Ask for the values left as None, in the order speed, angle, clockwise.
 
-    ``read_line()`` returns one line ('' or EOFError at end of input), e.g. ``input``;
-    ``write(text)`` shows text without a newline, e.g. ``stream_writer(sys.stdout)``.  A bad
-    answer is explained and asked again; values passed in are checked by the same rules
-    (ValueError).  Raise InputEnded if input ends before every value is known.
+    ``read_line()`` returns one line ('' or EOFError at end of input); ``write(text)`` shows
+    text.  Values passed in are checked by the same rules (ValueError).  Raise InputEnded if
+    input ends before every value is known.
     """
     def number(value, prompt, what, max_value, missing):
         if value is None:

@@ -17,18 +17,14 @@ A motion's eye on its robot: waiting for it to be there, then watching that it s
 
 Waiting: the robot (the node that publishes the odometry and subscribes cmd_vel, or with
 ``wait_for_odom`` false any cmd_vel subscriber), the simulator's lockstep, odometry and, on
-sim time, the clock; given up after ``start_timeout`` [s, wall time, counted from
-``start()``].  Watching, mid-motion: odometry that stops or comes from two publishers,
-simulated time that stands still or goes back, a simulator that went on without the motion.
-On sim time odometry goes through a queue and is used at the first tick after its stamp
-(``take_early_odoms``).  The node owns one RobotWatch and wires its odometry subscription, its
-watchdog timer and its clock's jump callback to it; what the watch finds ends the run through
-the node (``finish``, or ``distrust`` for odometry that cannot be trusted).
+sim time, the clock, until ``start_timeout``.  Watching, mid-motion: odometry that stops or
+comes from two publishers, simulated time that stands still or goes back, a simulator that
+went on without the motion.  What the watch finds ends the run through the node.
 """
 
+import enum
 import time
 
-from motion_challenges.motion_state import MotionState
 from motion_challenges.odometry import OdomPose
 from sim_diffdrive.node_names import node_names
 from sim_diffdrive.runtime import EXIT_FAILED
@@ -42,9 +38,18 @@ _CLOCKS_APART_S = 60.0
 WATCHDOG_PERIOD_S = 0.5
 
 
+class MotionState(str, enum.Enum):
+    """Where a motion is (a str too, equal to its value, for code that compares with one)."""
+
+    WAITING = 'waiting'  # for the goal, then for the robot (see RobotWatch.missing)
+    RUNNING = 'running'  # control() is called every tick
+    SETTLING = 'settling'  # stopped; waiting for odometry that shows where the robot came to rest
+    FINISHED = 'finished'  # done or given up: see exit_code
+
+
 class RobotWatch:
     """
-    Waits for a motion node's robot and watches it (see the module docstring).
+    Waits for a motion node's robot and watches it.
 
     ``use_odom(odom)`` takes each OdomPose once it is due; ``distrust(why)`` ends the run on
     odometry or a clock that cannot be trusted.
@@ -59,25 +64,19 @@ class RobotWatch:
         self._odom_wall = None  # when odometry last came [s, monotonic]
         self._wall_start = None
         self._ready = False
-        # On sim time, the clock as the watchdog last saw it, and when it last saw it move.
-        self._clock_seen_ns = None
-        self._clock_moved_wall = None
-        # When on_watchdog last ran [s, monotonic]; the node starts its timer with this watch.
-        self._watched_wall = time.monotonic()
-        # On sim time: odometry not used yet, in stamp order (see on_odom).
-        self._early_odoms = []
+        self._clock_seen_ns = None  # on sim time, the clock as the watchdog last saw it
+        self._clock_moved_wall = None  # and when it last saw it move
+        self._watched_wall = time.monotonic()  # when on_watchdog last ran
+        self._early_odoms = []  # on sim time: odometry not used yet, in stamp order
 
     def start(self):
-        """Start waiting: start_timeout counts from here."""
-        # A user answering questions is not a missing robot.
+        """Start waiting: start_timeout counts from here, not while a user answers questions."""
         self._wall_start = time.monotonic()
         self._ready = True
 
     def stop(self):
         """Stop watching (the run has finished): the queued odometry is dropped."""
         self._early_odoms.clear()
-
-    # -- odometry and the clock --------------------------------------------------------------
 
     def on_odom(self, msg):
         """Take odometry (bytes): use it now, or on sim time at the first tick after it."""
@@ -104,8 +103,6 @@ class RobotWatch:
         self._early_odoms.clear()
         if self._node.needs_odom and self._node.state == MotionState.RUNNING:
             self._distrust(f'Simulated time went back {-jump.delta.nanoseconds / _NS:.3f} s')
-
-    # -- waiting for the robot ---------------------------------------------------------------
 
     def missing(self):
         """Return what the motion still waits for, or '' when it can start."""
@@ -157,8 +154,6 @@ class RobotWatch:
         robots = set(node_names(publishers)) & set(node_names(subscribers))
         return min(robots) if robots else None
 
-    # -- watching it -------------------------------------------------------------------------
-
     def dropped_mid_run(self):
         """Fail, stopping the robot, once the simulator has gone on without this node."""
         node = self._node
@@ -187,9 +182,8 @@ class RobotWatch:
         """
         Count no silence over wall time this node did not run (its watchdog came late).
 
-        A process starved of the CPU, stopped in a debugger, or a test that paused between
-        the steps of its graph heard nothing because it did not look: what was sent meanwhile
-        waits in its queues, and the watchdog may run before it is handled.
+        A starved, debugged or paused process heard nothing because it did not look: what was
+        sent meanwhile waits in its queues, and the watchdog may run before it is handled.
         """
         stalled = wall - self._watched_wall - WATCHDOG_PERIOD_S
         if stalled > 0.0:

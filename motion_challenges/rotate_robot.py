@@ -15,10 +15,7 @@
 """
 ``rotate_robot``: turn in place by a typed (or given) angle at a typed (or given) speed.
 
-A port of The Construct's "ROS Mini Challenge #1" ``rotate_robot.py``.  It asks the same three
-questions, unless the answer was given as a parameter, then turns and stops.  ``mode`` picks
-open loop (``timed``: integral-exact on the node clock) or closed loop (``odom``: accumulated
-wrapped yaw from odometry, so 720 degrees is two turns, slowing down near the goal).
+``mode``: open loop (``timed``) or closed loop on accumulated odometry yaw (``odom``).
 """
 
 import math
@@ -63,7 +60,7 @@ PARAMETERS = (
 
 
 class RotateRobot(TimedMotion):
-    """Turn in place by ``angle_deg`` at ``angular_speed_deg`` (see the module docstring)."""
+    """Turn in place by ``angle_deg`` at ``angular_speed_deg``."""
 
     def __init__(self, **kwargs):
         super().__init__('rotate_robot', PARAMETERS, **kwargs)

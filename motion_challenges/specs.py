@@ -12,7 +12,7 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""Parameter tables that more than one motion declares (see sim_diffdrive.parameters.Spec)."""
+"""The parameters the motions share: their Specs (sim_diffdrive.parameters)."""
 
 import math
 
@@ -40,7 +40,7 @@ def out_and_back_specs(rate_hz):
     )
 
 
-# Every motion declares these besides its own (motion_node.MotionNode).
+# Every motion declares these besides its own.
 COMMON_PARAMETERS = (
     Spec('start_timeout', 10.0,
          'How long to wait for the robot (see wait_for_odom) before giving up [s, wall time], '

@@ -12,26 +12,23 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""
-The open-loop motions' base: follow a PiecewisePlan (motion_challenges.plans) on the node clock.
-
-Each tick publishes the plan's mean command until the next tick, so the commanded integral
-equals the plan's even when a segment ends between two ticks.  On sim time a tick fires at the
-first step of the clock at or after it is due, so the next one is known: with a period of
-whole steps (10 Hz on 20 ms steps) one period on, otherwise up to a step later (8 Hz: 140,
-120, 120, 120, 140 ms ...).  On wall time ticks land late by however long the executor took,
-so the last tick arms a one-shot timer for the plan's end instead, and the final stop is sent
-then, not at the next tick (the robot applies each command when it arrives).
-"""
+"""The open-loop motions' base: follow a PiecewisePlan (plans.py) on the node clock."""
 
 from motion_challenges.motion_node import MotionNode
-from motion_challenges.motion_node import MotionState
+from motion_challenges.robot_watch import MotionState
 
 _NS = 1_000_000_000
 
 
 class TimedMotion(MotionNode):
-    """An open-loop motion: subclasses return their PiecewisePlan from ``plan()``."""
+    """
+    An open-loop motion: follows the PiecewisePlan its subclass returns from ``plan()``.
+
+    Each tick publishes the plan's mean command until the next tick, so the commanded integral
+    equals the plan's.  On sim time the next tick is known (the first clock step at or after it
+    is due); on wall time ticks land late, so the last tick arms a one-shot timer for the plan's
+    end and the final stop is sent then.
+    """
 
     def plan(self):
         raise NotImplementedError
@@ -62,8 +59,7 @@ class TimedMotion(MotionNode):
         due_ns = self.lockstep.until_next_call_ns(self._tick_timer)
         if not step_ns or due_ns is None:
             return self.period
-        # The clock reaches the next tick's time in whole steps from now (its last step's size:
-        # a simulator steps evenly).
+        # The clock reaches the next tick's time in whole steps of its last step's size.
         return -(-due_ns // step_ns) * step_ns / _NS
 
     def _on_plan_end(self):

@@ -12,14 +12,7 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""
-``timed_out_and_back``: drive out, turn around, drive back, turn around; on the clock only.
-
-A port of rbx1's ``timed_out_and_back.py`` (ROS by Example): each leg drives ``goal_distance``
-at ``linear_speed``, stops and pauses, turns ``goal_angle`` at ``angular_speed``, stops and
-pauses.  Durations come from distance/speed and angle/speed and the plan is integral-exact,
-so the robot ends where it started, facing the same way, without rbx1's tick rounding.
-"""
+"""``timed_out_and_back``: rbx1's out-and-back on the clock only, integral-exact."""
 
 import math
 
@@ -31,7 +24,7 @@ from sim_diffdrive.runtime import run
 
 
 class TimedOutAndBack(TimedMotion):
-    """Out and back on the clock (see the module docstring)."""
+    """Out and back on the clock."""
 
     def __init__(self, **kwargs):
         super().__init__('timed_out_and_back', out_and_back_specs(50.0), **kwargs)

@@ -15,12 +15,5 @@
 """
 A light kinematic unicycle simulator (Twist in, Odometry out, optional /clock), and its tools.
 
-One folder per concern: ``sim/`` (the simulator node, its robots, the pure world that owns
-their state), ``world/`` (the map, contacts and the laser scan, no ROS), ``lockstep/``
-(simulated time shared across nodes and processes), ``taps/`` (what watches a run: MCAP,
-Foxglove, the browser), ``testing/`` (SimGraph, processes, the ``sim_graph`` fixture).  Beside
-them, the plumbing the motions share: parameters, runtime (one ``main()``), angles, the exact
-kinematics, the DDS profile.  Public entry points: ``sim_diffdrive.harness`` (SimGraph and
-what tests need) and ``sim_diffdrive.participant.take_part``.  Nothing here depends on the
-motions package.
+Public entry points: ``sim_diffdrive.harness`` and ``sim_diffdrive.participant.take_part``.
 """

@@ -39,10 +39,8 @@ def yaw_from_quaternion(x, y, z, w):
 
 class YawAccumulator:
     """
-    Sum the wrapped yaw changes between successive headings.
+    Sum the wrapped yaw changes between successive headings: 720 degrees means two turns.
 
-    Odometry reports yaw wrapped to (-pi, pi]; adding up the wrapped differences between
-    consecutive readings gives the total angle turned, so 720 degrees means two turns.
     Readings must come often enough that the robot turns less than pi between two of them.
     """
 

@@ -15,13 +15,9 @@
 """
 The CDR bytes of the few messages the package sends and reads, with numpy and struct (no ROS).
 
-rclpy publishes bytes and hands a ``raw=True`` subscription the bytes it received, so the hot
-path builds no message objects: odometry and /tf are patched into layouts made once per set of
-frames (``OdometryLayout``, ``TransformLayout``), commands are read where their fields lie.
-
-The encoding is XCDR1: a 4-byte encapsulation header (``00 01 00 00``: CDR, little endian;
-``00 00``: big endian), then the body, each value aligned to its size counted from the body's
-start; a string is a uint32 length (with its NUL), its bytes and the NUL.  Another
+The hot path builds no message objects: odometry and /tf are patched into layouts made once
+per set of frames, commands are read where their fields lie.  XCDR1: a 4-byte encapsulation
+header, then the body, each value aligned to its size from the body's start; another
 encapsulation raises UnsupportedEncoding, for the caller to decode it the slow way.
 """
 
@@ -135,8 +131,7 @@ def read_odometry(data):
     """
     Return (stamp [ns], frame_id, child_frame_id, position, orientation, twist) of Odometry bytes.
 
-    position is (x, y, z), orientation (x, y, z, w), twist (linear.x, angular.z): a small part
-    of what rclpy's typed subscription would build (two 36-double covariances).
+    position is (x, y, z), orientation (x, y, z, w), twist (linear.x, angular.z).
     """
     order = _byte_order(data)
     sec, nanosec = struct.unpack_from(order + 'iI', data, _BODY)
@@ -181,11 +176,9 @@ class OdometryLayout(_Layout):
     """
     Every robot's nav_msgs/Odometry as CDR bytes in one buffer, patched per step with numpy.
 
-    ``frames`` holds (frame_id, child_frame_id) per robot, ``pose_covariance`` and
-    ``twist_covariance`` the 36 values every message carries (a change makes a new layout).
-    What a unicycle does not have (position z, orientation x, y, linear.y, .z, angular.x, .y)
-    stays 0.  Each message starts 4 bytes past a multiple of 8, so that its body is 8-aligned
-    and every double is one element of a float64 view.
+    ``frames`` holds (frame_id, child_frame_id) per robot; what a unicycle does not have stays
+    0.  Each message starts 4 bytes past a multiple of 8, so that its body is 8-aligned and
+    every double is one element of a float64 view.
     """
 
     def __init__(self, frames, pose_covariance, twist_covariance):
@@ -217,24 +210,14 @@ class OdometryLayout(_Layout):
         return len(self._spans)
 
     def serialize(self, sec, nanosec, x, y, qz, qw, linear, angular):
-        """
-        Return every robot's message (a list of bytes) for these values.
-
-        x to angular hold one value per robot: numpy arrays or sequences of floats.
-        """
+        """Return every robot's message (a list of bytes); x to angular hold one value each."""
         self._write(sec, nanosec, (x, y, qz, qw, linear, angular))
         data = self._buffer.tobytes()
         return [data[start:end] for start, end in self._spans]
 
 
 class TransformLayout(_Layout):
-    """
-    The CDR bytes of a tf2_msgs/TFMessage with fixed frames; ``serialize`` fills in the rest.
-
-    ``frames`` holds (frame_id, child_frame_id) per transform.  Translations have z = 0 and
-    rotations turn about z only, as a unicycle's do.  Each transform: stamp (int32 sec, uint32
-    nanosec), frame_id, child_frame_id, translation (3 doubles), rotation (4 doubles).
-    """
+    """The CDR bytes of a TFMessage of fixed (frame_id, child_frame_id) frames, turned about z."""
 
     def __init__(self, frames):
         body = bytearray(struct.pack('<I', len(frames)))
@@ -252,10 +235,6 @@ class TransformLayout(_Layout):
         self._lay_out(bytes(_BODY) + ENCAPSULATION + body, stamps, [xy, xy + 1, xy + 5, xy + 6])
 
     def serialize(self, sec, nanosec, x, y, qz, qw):
-        """
-        Return the message's bytes for these values.
-
-        x to qw hold one value per transform: numpy arrays or sequences of floats.
-        """
+        """Return the message's bytes; x to qw hold one value per transform."""
         self._write(sec, nanosec, (x, y, qz, qw))
         return self._buffer[_BODY:].tobytes()

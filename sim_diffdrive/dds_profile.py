@@ -15,10 +15,8 @@
 """
 The package's Fast DDS profile (fastdds_profile.xml): lost reliable samples repaired in ~10 ms.
 
-Fast DDS reads the file named by FASTRTPS_DEFAULT_PROFILES_FILE once per process, when the
-process makes its first DDS participant; ``use_package_profile()`` must therefore run before
-the first node.  runtime.run() calls it for every executable, SimGraph for in-process graphs.
-A file the user named already is kept: it should then set ``heartbeatPeriod`` itself.
+Fast DDS reads FASTRTPS_DEFAULT_PROFILES_FILE when the process makes its first participant, so
+``use_package_profile()`` must run before the first node.  A file the user named is kept.
 """
 
 import os

@@ -12,12 +12,7 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""
-Everything a test of robot code needs, in one import: the graph, the probe, the processes.
-
-``from sim_diffdrive.harness import SimGraph, Probe, start, stop`` works wherever these live
-inside sim_diffdrive.testing (graph.py, probe.py, processes.py).
-"""
+"""Everything a test of robot code needs, in one import: the graph, the probe, the processes."""
 
 from sim_diffdrive.testing.graph import DOMAIN_VARIABLE
 from sim_diffdrive.testing.graph import isolated_domain_id

@@ -15,11 +15,8 @@
 """
 Exact unicycle kinematics and command limits for the simulator (no ROS imports).
 
-The pose is advanced along the exact arc a constant (v, w) command drives, as ros2_control's
-diff_drive odometry does, instead of the forward-Euler step of turtlesim or ArbotiX, so
-accuracy does not depend on the step length.  ``integrate`` is the one formula; ``integrate_all``
-is the same operations in the same order on numpy arrays (many robots in one call), equal to it
-bit for bit (test_world.py).  ``arcs`` is the one acceleration ramp, as the arcs it drives.
+``integrate`` is the one exact-arc formula; ``integrate_all`` does the same operations in the
+same order on numpy arrays, equal to it bit for bit; ``arcs`` is the one acceleration ramp.
 """
 
 import math
@@ -44,11 +41,10 @@ def _sinc(x):
 
 def integrate(x, y, yaw, linear, angular, dt):
     """
-    Advance a pose by holding (linear, angular) for dt seconds along the exact arc.
+    Return (x, y, yaw) after holding (linear, angular) for dt seconds along the exact arc.
 
     sin(a + b) - sin(a) = 2 cos(a + b/2) sin(b/2): the arc's chord is a straight step along the
     mid-heading, shortened by sinc(turn/2).  No case split, so no jump as angular -> 0.
-    Returns the new (x, y, yaw) with yaw wrapped to (-pi, pi].
     """
     turn = angular * dt
     chord = linear * dt * _sinc(0.5 * turn)
@@ -93,9 +89,8 @@ def arcs(linear, angular, target_linear, target_angular, max_linear_accel, max_a
     """
     Yield the arcs a robot drives in dt seconds while its velocity ramps towards its target.
 
-    Each arc is (seconds, linear, angular held over them, linear and angular at its end): while
-    the velocity differs from the target, sub-steps of at most ramp_step seconds, each holding
-    the velocity at its middle (second-order accurate); then the rest of dt in one arc.
+    Each is (seconds, linear, angular held, linear and angular at its end): sub-steps of at most
+    ramp_step holding the velocity at their middle while ramping, then the rest in one arc.
     """
     while dt > 0.0:
         if linear != target_linear or angular != target_angular:
@@ -113,13 +108,7 @@ def arcs(linear, angular, target_linear, target_angular, max_linear_accel, max_a
 
 
 class UnicycleModel:
-    """
-    A unicycle driven by (linear, angular) velocity commands, advanced piecewise in time.
-
-    ``advance(dt)`` integrates with the command applied, callers bringing the pose up to each
-    new command before ``command()``; with an acceleration limit the velocity ramps (arcs()).
-    World's one-robot reference, for tests and the benchmark's originals.
-    """
+    """A unicycle driven by velocity commands, advanced piecewise: sim.world's one-robot twin."""
 
     def __init__(self, x=0.0, y=0.0, yaw=0.0, max_linear_speed=0.0, max_angular_speed=0.0,
                  max_linear_accel=0.0, max_angular_accel=0.0, ramp_step=0.001):
@@ -139,26 +128,15 @@ class UnicycleModel:
         self.angular = 0.0
         self.target_linear = 0.0
         self.target_angular = 0.0
-        self.commanded = (0.0, 0.0)
 
     def command(self, linear, angular):
         """Set the velocity command; speed limits apply at once, acceleration limits over time."""
-        self.commanded = (linear, angular)
-        target_linear = limit_command(linear, 0.0, self.max_linear_speed, 0.0, 0.0)
-        target_angular = limit_command(angular, 0.0, self.max_angular_speed, 0.0, 0.0)
-        self.target_linear = target_linear
-        self.target_angular = target_angular
+        self.target_linear = limit_command(linear, 0.0, self.max_linear_speed, 0.0, 0.0)
+        self.target_angular = limit_command(angular, 0.0, self.max_angular_speed, 0.0, 0.0)
         if self.max_linear_accel <= 0.0:
-            self.linear = target_linear
+            self.linear = self.target_linear
         if self.max_angular_accel <= 0.0:
-            self.angular = target_angular
-
-    def set_limit(self, name, value):
-        """Change one limit (e.g. 'max_linear_speed'); the command in force is limited anew."""
-        if not hasattr(self, name) or not name.startswith('max_'):
-            raise AttributeError(f'UnicycleModel has no limit {name!r}')
-        setattr(self, name, value)
-        self.command(*self.commanded)
+            self.angular = self.target_angular
 
     @property
     def ramping(self):

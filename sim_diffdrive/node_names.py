@@ -16,10 +16,5 @@
 
 
 def node_names(infos):
-    """
-    Return the fully qualified names of the nodes of endpoint infos, sorted ('/ns/name').
-
-    infos: what ``Node.get_publishers_info_by_topic`` or ``get_subscriptions_info_by_topic``
-    returns; a node with several endpoints on the topic is named once.
-    """
+    """Return the sorted fully qualified names of the nodes of endpoint infos, each once."""
     return sorted({f"{info.node_namespace.rstrip('/')}/{info.node_name}" for info in infos})

@@ -15,12 +15,9 @@
 """
 Declare a node's parameters from one table, refuse bad values, apply live changes.
 
-Each parameter gets a ParameterDescriptor with its description and range, for ``ros2 param
-describe``.  Values are checked here, not by rclpy, so that ``-p angle_deg:=90`` (an integer)
-serves a float parameter and every refusal names the parameter, its range and the value.
-A parameter is live (``Spec(..., live=True)``: a runtime set is checked by ``Spec.check``,
-stored and handed to ``on_change``) or read-only (rclpy refuses a runtime set), so no set is
-accepted and then ignored.
+Values are checked here, not by rclpy, so that ``-p angle_deg:=90`` (an integer) serves a float
+parameter and every refusal names the parameter, its range and the value.  A parameter is live
+or read-only, so no set is accepted and then ignored.
 """
 
 from array import array
@@ -47,11 +44,8 @@ class Spec:
     """
     One parameter: name, default (its type decides the parameter's type) and meaning.
 
-    A default of None declares it without a value (None unless given); ``kind`` names its
-    type.  ``low``/``high`` bound numbers (and each element of a number array), ``low_open``
-    excludes ``low`` (a speed > 0); ``choices`` restricts strings; ``length`` fixes an array's
-    size, ``items`` its elements' type (float or str).  ``live`` lets it change while the node
-    runs; otherwise it is read-only after start.
+    A default of None declares it without a value, ``kind`` naming its type; ``low_open``
+    excludes ``low``; ``items`` is an array's element type (float or str).
     """
 
     name: str
@@ -162,8 +156,7 @@ def declare(node, specs, on_change=None):
     Declare every Spec on node and return its Values: the checked values as attributes.
 
     Raises ParameterError naming the first unusable value.  A live parameter set at runtime is
-    checked by its Spec, stored converted and passed to ``on_change(name, value)``.  rclpy's
-    use_sim_time is made read-only (_clock_chosen_at_start).
+    checked, stored converted and passed to ``on_change(name, value)``.
     """
     for spec in specs:
         # Declared without its range first, so that the check below (not rclpy's) words the
@@ -184,18 +177,13 @@ def declare(node, specs, on_change=None):
             node.set_descriptor(spec.name, descriptor)
     live = {spec.name: spec for spec in specs if spec.live}
     if live:
-        _LiveParameters(node, live, on_change).attach()
+        _LiveParameters(node, live, on_change)
     _clock_chosen_at_start(node)
     return Values(node, specs)
 
 
 class Values:
-    """
-    A node's declared parameters as attributes (``params.rate_hz``), read from the node.
-
-    rclpy holds each value, stored converted by declare() and by every live set, so it has one
-    owner; an attribute is that value through its Spec (an unset list reads as [], not None).
-    """
+    """A node's declared parameters as attributes (``params.rate_hz``), read from rclpy."""
 
     def __init__(self, node, specs):
         self._get = node.get_parameter
@@ -209,12 +197,7 @@ class Values:
 
 
 def _clock_chosen_at_start(node):
-    """
-    Make rclpy's use_sim_time read-only: these nodes choose their clock once, at start.
-
-    The simulator picks how it steps and a motion its lockstep and ticks from it: switched
-    mid-run, they would stop while the set was reported successful.
-    """
+    """Make use_sim_time read-only: these nodes choose their clock once, at start."""
     node.set_descriptor('use_sim_time', ParameterDescriptor(
         name='use_sim_time', type=node.describe_parameter('use_sim_time').type,
         description='Run on simulated time from /clock (the simulator publishes it with '
@@ -231,9 +214,8 @@ class _LiveParameters:
     The rclpy parameter callbacks that check, store and apply a node's live parameters.
 
     rclpy checks a descriptor's range (in its own words, without open bounds) before any
-    on-set callback, so the Spec speaks first, in the pre-set callback: a good value goes on
-    converted; a bad one is noted and replaced by the current value, and the on-set callback
-    refuses the set with the noted words.
+    on-set callback, so the Spec speaks first, in the pre-set callback: a bad value is noted
+    and replaced by the current one, and the on-set callback refuses the set in its words.
     """
 
     def __init__(self, node, specs, on_change):
@@ -241,10 +223,7 @@ class _LiveParameters:
         self.specs = specs
         self.on_change = on_change
         self._refused = {}  # parameter name -> refusal, for the set under way
-
-    def attach(self):
-        node = self.node
-        node._live_parameters = live_parameters(node) | set(self.specs)
+        node._live_parameters = live_parameters(node) | set(specs)
         node.add_pre_set_parameters_callback(self._convert)
         node.add_on_set_parameters_callback(self._refuse)
         node.add_post_set_parameters_callback(self._apply)

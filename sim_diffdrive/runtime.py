@@ -17,14 +17,8 @@ The one ``main()`` shape every executable of this package uses.
 
 rclpy's default SIGINT handler shuts the context down before Python sees KeyboardInterrupt,
 and a last zero Twist could no longer be published.  So SIGINT and SIGTERM are handled here:
-while Python code waits (typed input) they raise KeyboardInterrupt; once the executor spins
-they set a flag, checked between waits of at most 0.1 s, so neither a callback nor the final
-stop and cleanup is cut off.  Each node's ``shutdown_hook`` (the final stop) runs while the
-context is valid; should it fail, it is logged, the exit code is 1 and cleanup goes on.
-
-``make_node()`` may return several nodes (a list or tuple) sharing one executor.  The run ends
-when every node that has a ``done`` attribute is done; on exit every hook runs before any node
-is destroyed.
+KeyboardInterrupt while Python code waits (typed input), a flag checked between spins once the
+executor runs, so neither a callback nor the final stop (``shutdown_hook``) is cut off.
 """
 
 from contextlib import contextmanager
@@ -75,8 +69,7 @@ def destroyed_if_refused(node):
     """
     Destroy node if the block raises (a bad parameter or input refused it), then re-raise.
 
-    A node make_node() built but never returned is not run()'s to destroy; left to the garbage
-    collector, it could go in a process forked later, on DDS handles it inherited.
+    Left to the garbage collector, it could go in a process forked later, on its DDS handles.
     """
     try:
         yield node
@@ -113,10 +106,9 @@ def run(make_node, args=None):
     """
     Initialise rclpy, build the node(s) with ``make_node()``, spin until done, clean up.
 
-    Returns the process exit code: the worst (largest) ``exit_code`` of the nodes when they
-    finish by themselves; for a user interrupt (Ctrl-C or SIGTERM) 0, or the worst code of
-    the nodes that had already finished; 2 for a bad parameter or input; 1 otherwise, and 1
-    whenever a node's ``shutdown_hook`` failed.
+    ``make_node()`` may return a list of nodes sharing one executor.  Returns the worst
+    ``exit_code`` of the nodes that finished (0 for none, after a user interrupt); 2 for a bad
+    parameter or input; 1 otherwise, and whenever a ``shutdown_hook`` failed.
     """
     logger = rclpy.logging.get_logger('motion_challenges')
     use_package_profile()  # before the first node makes the process's DDS participant
@@ -142,8 +134,7 @@ def run(make_node, args=None):
         executor = EventsExecutor()
         for node in nodes:
             executor.add_node(node)
-        # What exists now lives as long as the process: the collector need not walk it again,
-        # neither during the run nor at exit (rclpy, numpy and the messages are many objects).
+        # What exists now lives as long as the process: the collector need not walk it again.
         gc.freeze()
         spin_until_done(executor, nodes, interrupts)
         exit_code = worst_exit_code(nodes)

@@ -16,13 +16,12 @@
 Where else the simulator's traffic goes: an MCAP file, Foxglove, a browser (view_port).
 
 A tap has a ``name``, ``wants_path`` (build the path message even with no DDS subscriber),
-``write(topic, msg, stamp_ns)`` for every command heard and every odometry, /tf, /clock and
-path message published (a message, or the CDR bytes that crossed DDS), ``close()``, and
-optionally ``step(stamp_ns, world)`` once per odometry publish with the whole sim/world.py
-World, to draw every robot at once.  Each needs an optional package (mcap, foxglove-sdk,
-rerun-sdk): when it is missing, or a file or port cannot be had, the simulator says so once
-and runs without it; a tap that fails while writing is reported once and dropped.
+``write(topic, msg, stamp_ns)`` (a message or its CDR bytes), ``close()``, and optionally
+``step(stamp_ns, world)`` once per odometry publish.  A tap whose package, file or port is
+missing, or that fails while writing, is reported once and the simulator runs without it.
 """
+
+import importlib
 
 from sim_diffdrive.parameters import Spec
 
@@ -53,7 +52,6 @@ class Taps:
         self._changed()
 
     def _changed(self):
-        # Whether some tap builds the path message even with no DDS subscriber (read per step).
         self.wants_path = any(tap.wants_path for tap in self._taps)
 
     def __bool__(self):
@@ -98,24 +96,24 @@ class Taps:
             self._node.get_logger().error(f'{tap.name}: closing failed: {error}')
 
 
+# Each tap's parameter, the package it needs, its module and class (imported only when asked).
+_TAPS = (
+    ('record_file', 'mcap', 'recorder', 'McapRecorder'),
+    ('foxglove_port', 'foxglove-sdk', 'foxglove_live', 'FoxgloveLive'),
+    ('view_port', 'rerun-sdk', 'view', 'BrowserView'),
+)
+
+
 def open_taps(node):
     """Return the Taps node.params ask for (record_file, foxglove_port, view_port)."""
-    p = node.params
-    taps = []
-    if p.record_file:
-        taps.append(_open(node, 'record_file', 'mcap', lambda: _recorder()(p.record_file, node)))
-    if p.foxglove_port:
-        taps.append(_open(node, 'foxglove_port', 'foxglove-sdk',
-                          lambda: _foxglove()(p.foxglove_port, node)))
-    if p.view_port:
-        taps.append(_open(node, 'view_port', 'rerun-sdk',
-                          lambda: _browser_view()(p.view_port, node)))
+    taps = [_open(node, *tap) for tap in _TAPS if getattr(node.params, tap[0])]
     return Taps(node, [tap for tap in taps if tap is not None])
 
 
-def _open(node, parameter, package, make):
+def _open(node, parameter, package, module, name):
     try:
-        return make()
+        tap_class = getattr(importlib.import_module(f'sim_diffdrive.taps.{module}'), name)
+        return tap_class(getattr(node.params, parameter), node)
     except ImportError as error:
         node.get_logger().error(
             f'{parameter} needs the Python package {package} ({error}); pip install {package}. '
@@ -123,18 +121,3 @@ def _open(node, parameter, package, make):
     except OSError as error:
         node.get_logger().error(f'{parameter}: {error}. Running without it.')
     return None
-
-
-def _recorder():
-    from sim_diffdrive.taps.recorder import McapRecorder
-    return McapRecorder
-
-
-def _foxglove():
-    from sim_diffdrive.taps.foxglove_live import FoxgloveLive
-    return FoxgloveLive
-
-
-def _browser_view():
-    from sim_diffdrive.taps.view import BrowserView
-    return BrowserView

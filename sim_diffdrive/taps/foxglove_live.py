@@ -15,16 +15,9 @@
 """
 The simulator's run, live in Foxglove: a WebSocket server (foxglove-sdk) fed by the taps.
 
-Every message the taps get goes out on its ROS topic as CDR bytes with the ``ros2msg``
-schema rosbag2 would write (msg_definitions.py), so Foxglove shows them as a ROS bag.  In the
-3D panel, ``/foxglove/robot`` is a SceneUpdate with a box and an arrow locked to the base
-frame, and, when the simulator does not publish /tf, ``/foxglove/odom_transform`` carries the
-odometry as FrameTransforms.
-
-The server has no authentication, so it listens on 127.0.0.1 only; to watch a simulator on
-another machine, forward the port (``ssh -L 8765:localhost:8765 robot``).  A message is
-serialized only when a client subscribes to its topic; the path goes out at most twice a wall
-second, the scene once a second and when the base frame is renamed.
+Messages go out as CDR with rosbag2's ``ros2msg`` schemas; ``/foxglove/robot`` draws the robot
+and, without /tf, ``/foxglove/odom_transform`` carries the odometry.  The server has no
+authentication, so it listens on 127.0.0.1 only.
 """
 
 import time
@@ -50,7 +43,7 @@ _NS = 1_000_000_000
 
 
 class FoxgloveLive:
-    """A tap (see taps.py) serving the run to Foxglove over WebSocket on one port."""
+    """A tap serving the run to Foxglove over WebSocket on one port."""
 
     name = 'foxglove_port'
     wants_path = True

@@ -16,9 +16,7 @@
 The full ``ros2msg`` definition of a message type, as rosbag2 writes it into MCAP schemas.
 
 The type's .msg text, then for each type it uses (depth first, sorted, once each) a line of 80
-'=', ``MSG: pkg/Type`` and that type's .msg text, read from the ament index.  The MCAP
-recorder and the Foxglove server both describe the CDR bytes they carry with it, and both
-take a message as an object or as those bytes (``message_class``).
+'=', ``MSG: pkg/Type`` and that type's .msg text, read from the ament index.
 """
 
 import itertools
@@ -53,11 +51,7 @@ def topic_type(node, topic):
 
 
 def message_class(node, topic, msg, types):
-    """
-    Return the class of msg, sent or heard by node on topic: a message, or its CDR bytes.
-
-    The class of bytes is that of node's publisher or subscription on topic, cached in types.
-    """
+    """Return the class of msg (a message, or its CDR bytes: cached in types) node has on topic."""
     if not isinstance(msg, bytes):
         return type(msg)
     msg_class = types.get(topic)

@@ -15,11 +15,8 @@
 """
 The record_file tap: the simulator's traffic as an MCAP file in the ROS 2 encoding.
 
-Messages are CDR, byte for byte what went out on DDS; each type's schema is its full
-``ros2msg`` definition as rosbag2 writes it (msg_definitions.py), so Foxglove, ``ros2 bag``
-and any ROS 2 MCAP reader open the file without this package.  The file is chunked (zstd) and
-finished with its summary by ``close()``, which the simulator calls on every exit path; a file
-cut off before that (kill -9) still reads up to its last chunk, without the index.
+Messages are the CDR that went out on DDS, with rosbag2's ``ros2msg`` schemas.  A file cut off
+before ``close()`` (kill -9) still reads up to its last chunk, without the index.
 """
 
 import contextlib
@@ -41,11 +38,10 @@ _SIGNALS = {signal.SIGINT, signal.SIGTERM}
 
 class McapRecorder:
     """
-    A tap (see taps.py) writing every message it is given to an MCAP file.
+    A tap writing every message it is given to an MCAP file.
 
-    log_time and publish_time of each message are ``stamp_ns``, the simulated time it was
-    stamped with (rosbag2 logs receive time): a run recorded at 50x real time plays back at
-    the pace of simulated time, in line with the header stamps.
+    log_time and publish_time are ``stamp_ns``, simulated time (rosbag2 logs receive time): a
+    run recorded at 50x real time plays back at the pace of its header stamps.
     """
 
     wants_path = True

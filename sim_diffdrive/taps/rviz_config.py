@@ -15,12 +15,8 @@
 """
 RViz for a namespaced robot or a fleet: rviz/unicycle.rviz, rewritten for its frames and topics.
 
-The installed configuration shows one robot in the root namespace (fixed frame ``odom``);
-the simulator prefixes frames with its namespace and each robot's name (``robot1/odom``).
-``rviz_config`` writes a copy for a namespace (frames from it, topics absolute) or for a
-fleet: each robot's displays on a fixed frame ``world`` the launch file ties to every
-odometry frame, or with the simulator's map on ``map`` (``fixed_frame``).  No ROS imports:
-launch/unicycle.launch.py uses it.
+A fleet's displays go on a fixed frame ``world`` the launch file ties to every odometry frame
+(or on the map's).  No ROS imports: launch/unicycle.launch.py uses it.
 """
 
 import collections
@@ -42,12 +38,7 @@ RobotView = collections.namedtuple('RobotView', 'name odom_frame base_frame topi
 
 
 def robot_views(namespace='', robots=()):
-    """
-    Return a RobotView per robot (one unnamed for no robots): its frames and topic namespace.
-
-    Frames as unicycle_sim names its defaults (``/site`` -> ``site/odom``, ``robot1/site/odom``
-    for a robot); topics the absolute namespace of the robot's (``/site/robot1``, or ``''``).
-    """
+    """Return a RobotView per robot (one unnamed for none): frames as unicycle_sim names them."""
     prefix = namespace.strip('/')
     views = []
     for name in robots or ['']:
@@ -59,11 +50,7 @@ def robot_views(namespace='', robots=()):
 
 
 def rviz_config(template, namespace='', robots=(), fixed_frame=None):
-    """
-    Return the RViz configuration template (YAML text) rewritten for namespace and robots.
-
-    fixed_frame (the map's, say) replaces ``world`` for a fleet, else the odometry frame.
-    """
+    """Return the RViz template (YAML text) for namespace and robots, on fixed_frame if given."""
     config = yaml.safe_load(template)
     views = robot_views(namespace, robots)
     manager = config['Visualization Manager']

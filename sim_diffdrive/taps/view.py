@@ -15,25 +15,15 @@
 """
 The run, live in a browser (view_port): Rerun's web viewer, fed on simulated time.
 
-``BrowserView`` starts the rerun-sdk wheel's ``rerun`` program as a child listening on
-127.0.0.1 only (gRPC on view_port + 1 when free, so the address stays the same from run to
-run), serves the page on ``view_port`` (view_page.py) and logs one recording per run:
-
-- ``world/robots``, ``world/heading``: each robot as a box and an arrow along its heading,
-  in its odometry frame (with map_file: the map's), seen from above, x right and y up (REP 103);
-- ``world/map`` (with map_file): the obstacle cells, static; ``world/scan``: every robot's
-  newest scan as hit points, in the robot's colour;
-- ``world/paths``: each robot's path, a frame sending only the piece since the last one;
-  a jump (a reset) is not joined by a line;
-- ``speed/linear``, ``speed/angular``: achieved and commanded speed of each robot.
-
-The simulator's thread only copies each step's arrays; a thread sends frames at most 30 times
-a wall second with every step since the last, so the cost does not grow with
-real_time_factor, and each kind of shape goes out in one call for all robots (one entity per
-robot costs about a millisecond per robot-step).  The program runs with a configuration
-directory of its own with analytics disabled (``rerun analytics disable``), so the user's
-Rerun configuration is neither read nor changed; it stops with close() and, on Linux, with
-the simulator's death (``setpriv --pdeathsig``).
+``BrowserView`` starts the wheel's ``rerun`` program on 127.0.0.1 only (gRPC on view_port + 1
+when free), serves the page on ``view_port`` (view_page.py) and logs ``world/robots``,
+``world/heading``, ``world/map``, ``world/scan``, ``world/paths`` (broken at a jump) and
+``speed/linear``, ``speed/angular`` (achieved and commanded): numpy arrays, shaped by the
+plain functions at the end.  The simulator's thread only copies each step's arrays; a thread
+sends frames at most 30 times a wall second, each kind of shape in one call for all robots
+(one entity per robot costs about 1 ms per robot-step).  The program gets a configuration
+directory of its own with analytics disabled, and dies with the simulator (``setpriv
+--pdeathsig``).
 """
 
 import atexit
@@ -51,10 +41,6 @@ import numpy as np
 from sim_diffdrive.angles import quaternion_from_yaw
 from sim_diffdrive.taps.view_page import page_url
 from sim_diffdrive.taps.view_page import ViewerPage
-from sim_diffdrive.taps.view_shapes import path_strips
-from sim_diffdrive.taps.view_shapes import robot_colors
-from sim_diffdrive.taps.view_shapes import scan_points
-from sim_diffdrive.taps.view_shapes import solid_boxes
 
 DEFAULT_HOST = '127.0.0.1'
 TIMELINE = 'sim_time'
@@ -76,10 +62,15 @@ SCAN_Z = 0.03
 # More robots than these: no name labels in the view, no legend in the plots (they pile up).
 _LABELLED_ROBOTS = 16
 _LEGEND_ROBOTS = 1
+# The map's obstacle cells as drawn: flat slabs just under the robots; the scan's hit points.
+MAP_HALF_HEIGHT = 0.02
+# A step longer than its robot can have driven is a jump (a reset): no path segment joins it.
+_JUMP_MARGIN_M = 1e-3
+_GOLDEN = 0.618033988749895
 
 
 class BrowserView:
-    """A tap (see taps/__init__.py) drawing every robot in Rerun's web viewer."""
+    """A tap drawing every robot in Rerun's web viewer."""
 
     name = 'view_port'
     wants_path = False
@@ -128,8 +119,6 @@ class BrowserView:
         atexit.register(self.close)
         node.get_logger().info(f'Browser view: open {self.url}')
 
-    # -- the rerun program ----------------------------------------------------------------
-
     def _start_rerun(self, program, host, grpc_port, files_port):
         env = dict(os.environ, XDG_CONFIG_HOME=os.path.join(self._home, 'config'),
                    XDG_DATA_HOME=os.path.join(self._home, 'data'), TELEMETRY_ENABLED='false')
@@ -165,8 +154,6 @@ class BrowserView:
             return 'no output'
         return lines[-1] if lines else 'no output'
 
-    # -- the simulator's side: a few microseconds per step ---------------------------------
-
     def write(self, topic, msg, stamp_ns):
         """Keep a robot's scan for step() to draw from the pose of the step it precedes."""
         row = self._scan_rows.get(topic)
@@ -199,8 +186,6 @@ class BrowserView:
         """Return the newest scan not drawn yet, or None (with the lock held)."""
         scan, self._scan = self._scan, None
         return scan
-
-    # -- the sending thread: at most FRAME_PERIOD_S apart -----------------------------------
 
     def _send_frames(self):
         while not self._stop.wait(FRAME_PERIOD_S):
@@ -442,3 +427,59 @@ def _stop(process):
         except subprocess.TimeoutExpired:
             process.kill()
     process.wait()
+
+
+def path_strips(stamps, xs, ys, linear):
+    """Return each robot's path through xs, ys (count, points) as strips, unjoined at jumps."""
+    if xs.shape[1] < 2:
+        return None
+    reach = (np.maximum(np.abs(linear[:, 1:]), np.abs(linear[:, :-1])) * (np.diff(stamps) * 1e-9)
+             + _JUMP_MARGIN_M)
+    jumps = np.hypot(np.diff(xs), np.diff(ys)) > reach
+    xs, ys = xs.copy(), ys.copy()
+    for robot, after in zip(*np.nonzero(jumps)):  # rare: one loop turn per jump
+        xs[robot, :after + 1] = xs[robot, after + 1]
+        ys[robot, :after + 1] = ys[robot, after + 1]
+    return np.stack([xs, ys, np.zeros_like(xs)], axis=2)
+
+
+def scan_points(ranges, angles, x, y, yaw):
+    """Return the finite hits of scans (robots, beams) from poses x, y, yaw: (points, owners)."""
+    ranges = np.asarray(ranges, dtype=float)
+    owners, beams = np.nonzero(np.isfinite(ranges))
+    hit = ranges[owners, beams]
+    heading = np.asarray(yaw, dtype=float)[owners] + np.asarray(angles, dtype=float)[beams]
+    points = np.empty((len(hit), 2))
+    points[:, 0] = np.asarray(x, dtype=float)[owners] + hit * np.cos(heading)
+    points[:, 1] = np.asarray(y, dtype=float)[owners] + hit * np.sin(heading)
+    return points, owners
+
+
+def solid_boxes(grid):
+    """Return a map's obstacle cells as boxes, one per run along a row: (centers, half_sizes)."""
+    solid = np.asarray(grid.solid, dtype=np.int8)
+    edges = np.diff(np.pad(solid, ((0, 0), (1, 1))), axis=1)
+    rows, starts = np.nonzero(edges == 1)
+    _, ends = np.nonzero(edges == -1)  # row by row, in the same order as the starts
+    res = grid.resolution
+    gx, gy = 0.5 * (starts + ends) * res, (rows + 0.5) * res
+    mx, my = grid.from_grid(gx, gy)
+    centers = np.zeros((len(rows), 3))
+    centers[:, 0], centers[:, 1] = mx, my
+    half_sizes = np.empty((len(rows), 3))
+    half_sizes[:, 0] = 0.5 * (ends - starts) * res
+    half_sizes[:, 1] = 0.5 * res
+    half_sizes[:, 2] = MAP_HALF_HEIGHT
+    return centers, half_sizes
+
+
+def robot_colors(count):
+    """Return count distinct RGB colours (uint8), the same for the same index in every run."""
+    hues = (0.07 + _GOLDEN * np.arange(count)) % 1.0  # orange first: not Rerun's own blue
+    return (np.stack([_hsv_channel(hues, shift) for shift in (5.0, 3.0, 1.0)], axis=1)
+            * 255).round().astype(np.uint8)
+
+
+def _hsv_channel(hues, shift, saturation=0.75, value=0.9):
+    k = (shift + hues * 6.0) % 6.0
+    return value - value * saturation * np.clip(np.minimum(k, 4.0 - k), 0.0, 1.0)

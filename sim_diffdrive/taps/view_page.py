@@ -15,12 +15,10 @@
 """
 The browser view's page: Rerun's web viewer, confined to this machine (no ROS imports).
 
-The ``rerun`` program serves its viewer on a private port; ``ViewerPage`` serves the same
-files on ``view_port`` under a Content-Security-Policy that lets the page talk to this
-machine's viewer and gRPC ports only: Rerun's page would otherwise fetch a web font, release
-and example lists, and send usage analytics (its web build has no switch for that).  The font
-links are taken out of index.html, a script reloads the page when another run serves the
-port, and requests whose Host is not this machine's are refused (DNS rebinding).
+``ViewerPage`` serves the rerun program's viewer files on ``view_port`` under a CSP that lets
+the page talk to this machine only: Rerun's page would otherwise fetch a web font, release and
+example lists, and send analytics (its web build has no switch for that).  Requests whose Host
+is not this machine's are refused (DNS rebinding).
 """
 
 import functools
@@ -74,8 +72,7 @@ class ViewerPage:
         """
         Listen on host:port now (OSError when the port is taken) and serve from a thread.
 
-        grpc_origins: the origins (``http://127.0.0.1:PORT``) the page may stream from; run:
-        (id, gRPC url) of this run (the id letters and digits), for the page to follow runs.
+        grpc_origins: the origins the page may stream from; run: (id, gRPC url) of this run.
         """
         handler = functools.partial(
             _PageHandler, upstream_port=upstream_port,

@@ -12,12 +12,4 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""
-Test robot code against the simulator.
-
-SimGraph (graph.py), Probe (probe.py), processes
-(processes.py) and the ``sim_graph`` pytest fixture (pytest_plugin.py).
-
-Import them from sim_diffdrive.harness.  This package's own import loads nothing, so pytest
-loads the plugin without rclpy.
-"""
+"""Test robot code against the simulator (import from sim_diffdrive.harness); loads no rclpy."""

@@ -13,20 +13,19 @@
 # limitations under the License.
 
 """
-Test robot code against the simulator: an in-process graph stepped in lockstep.
+Test robot code against the simulator: SimGraph, an in-process graph stepped in lockstep.
 
-``SimGraph`` is the harness of the project's tests, demo and bench, and what the ``sim_graph``
-pytest fixture (pytest_plugin.py) gives a user: build nodes with ``graph.context``, start a
-simulator that owns the clock with ``graph.sim(**params)``, ``graph.add(node)``, then
-``graph.step_for(seconds)`` or ``graph.step_until(predicate, sim_timeout)`` and read
-``graph.pose()`` (with a ``map_file``, ``graph.scan()`` too).  Each step advances simulated
-time by one simulator step, then spins until every message sent has been handled and no
-timer is due, so an answer lands on the step it was meant for, whatever the machine's load.
+Its engine, ``Lockstep``, steps a simulator built with ``stepped=True``: each step advances the
+clock one simulator step, then spins until every message sent has been handled and no timer is
+due, so an answer lands on its step whatever the machine's load.
 """
 
+import collections
 import fcntl
+import itertools
 import os
 import random
+import time
 
 import rclpy
 from rclpy.context import Context
@@ -35,11 +34,16 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import LaserScan
 from sim_diffdrive.dds_profile import use_package_profile
+from sim_diffdrive.lockstep.counter import clock_topic
+from sim_diffdrive.lockstep.counter import MessageCounter
+from sim_diffdrive.lockstep.handshake import Answer
+from sim_diffdrive.lockstep.handshake import StepLedger
+from sim_diffdrive.sim.clock import SteppedClock
 from sim_diffdrive.sim.node import UnicycleSim
-from sim_diffdrive.testing.engine import Lockstep
 from sim_diffdrive.testing.probe import pose_of
 from sim_diffdrive.testing.probe import Probe
 
+_NS = 1_000_000_000
 # Simulated seconds per wall second of a simulator started by sim(lockstep=False): fast, with a
 # wide margin for a command to cross the graph before the next clock step.
 FREE_REAL_TIME_FACTOR = 10.0
@@ -51,14 +55,183 @@ DOMAIN_LOCKS = '/tmp/sim_graph_domains'
 _claims = []  # the lock files (descriptors) this process holds (claim_domains)
 
 
+class Lockstep:
+    """
+    The nodes of one test or benchmark run, spun by ``executor``, stepped by ``step()``.
+
+    What is owed is the clock owner's StepLedger, as across processes: each discovered node is
+    a member whose answer is its MessageCounter's live dicts, so no answer travels and counts
+    are exact without stamps; what a participant checks before it answers (its clock shows the
+    time, no timer is due) is checked in settled().  A removed node leaves, and what it sent is
+    still waited for; what members hear beyond what members sent is forgotten at each step.
+    """
+
+    def __init__(self, executor):
+        self.executor = executor
+        self.nodes = []
+        self.clock_owner = None
+        self.steps = 0
+        # No member is ever dropped here: no owner to spare (see StepLedger.drop).
+        self.ledger = StepLedger(None)
+        self._answers = {}  # node -> its answer in the ledger
+        self._ids = itertools.count()  # a removed node's id stays taken (its goodbye is final)
+        self._discovered = False
+
+    def add(self, node):
+        """Spin node with the graph and count its traffic."""
+        self.nodes.append(node)
+        self.executor.add_node(node)
+        self._discovered = False
+        return node
+
+    def add_clock_owner(self, sim):
+        """Add a UnicycleSim built with publish_clock and stepped=True: ``step()`` steps it."""
+        if not isinstance(sim.clock, SteppedClock):
+            raise ValueError(
+                'the graph steps a simulator built with publish_clock:=true and stepped=True; '
+                f'this one keeps time with a {type(sim.clock).__name__}')
+        self.clock_owner = sim
+        return self.add(sim)
+
+    def remove(self, node):
+        """Stop spinning node and destroy it; wait until the graph has forgotten its publishers."""
+        topics = {pub.topic_name for pub in node.publishers}
+        self.executor.remove_node(node)
+        self.nodes.remove(node)
+        if node is self.clock_owner:
+            self.clock_owner = None
+        node.destroy_node()
+        answer = self._answers.pop(node, None)
+        if answer is not None:  # a goodbye: what it sent is still waited for, not what it hears
+            answer.leaving = True
+            self.ledger.receive(answer, answer.step_ns)
+
+        if not self.nodes:
+            return
+
+        # A destroyed publisher leaves the graph a little later: wait, so that the next node on
+        # its topic is not taken for a second publisher.
+        def forgotten():
+            return all(self.nodes[0].count_publishers(topic) <= sum(
+                pub.topic_name == topic for n in self.nodes for pub in n.publishers)
+                for topic in topics)
+        self.spin_until(forgotten, 10.0, poll=0.005)
+
+    def close(self):
+        """Shut the executor down, then destroy every node (the context is the caller's)."""
+        # The executor first: it keeps the last wait set's entities between spin_once calls,
+        # and destroying a node under it crashed rclpy now and then (under load).
+        self.executor.shutdown()
+        for node in reversed(self.nodes):
+            node.destroy_node()
+        self.nodes = []
+
+    def spin_until(self, predicate, timeout, poll=0.001):
+        """Spin until predicate() is true; return whether it became true within timeout (wall)."""
+        deadline = time.monotonic() + timeout
+        while not predicate():
+            if time.monotonic() > deadline:
+                return False
+            self.executor.spin_once(timeout_sec=poll)
+        return True
+
+    def wait_for_discovery(self, timeout=10.0):
+        """Spin until every publisher has matched every in-graph subscription of its topic."""
+        subscribers = {}
+        for node in self.nodes:
+            for sub in node.subscriptions:
+                subscribers[sub.topic_name] = subscribers.get(sub.topic_name, 0) + 1
+
+        def matched():
+            return all(pub.get_subscription_count() >= subscribers.get(pub.topic_name, 0)
+                       for node in self.nodes for pub in node.publishers)
+        if not self.spin_until(matched, timeout, poll=0.01):
+            raise RuntimeError('in-process nodes did not discover each other')
+        # Count traffic from here on: what was sent before the nodes matched may never arrive.
+        now_ns = self._now_ns()
+        for node in self.nodes:
+            counter = MessageCounter.of(node, clock_topic(node), fixed=True)
+            counter.wrap_new()  # entities made since it was last looked at
+            answer = self._answers.get(node)
+            if answer is None:  # it joins
+                name = node.get_fully_qualified_name()
+                answer = self._answers[node] = Answer(f'{name}#{next(self._ids)}', name, now_ns,
+                                                      counter.sent, counter.heard)
+            # A member's again: a topic it hears since is owed from here on.
+            self.ledger.receive(answer, now_ns)
+        self._discovered = True
+
+    def settled(self, now_ns):
+        """Return whether every message sent was handled and every node's timers have run."""
+        if self.ledger.waiting_for(now_ns):
+            return False
+        for node in self.nodes:
+            if node is self.clock_owner:
+                continue
+            clock = node.get_clock()  # on sim time (use_sim_time) while ROS time is active
+            if clock.ros_time_is_active and clock.now().nanoseconds != now_ns:
+                return False
+            for timer in node.timers:
+                if not timer.is_canceled():
+                    due = timer.time_until_next_call()
+                    if due is not None and due <= 0:
+                        return False
+        return True
+
+    @property
+    def now_ns(self):
+        return self.clock_owner.now_ns()
+
+    @property
+    def step_ns(self):
+        return round(_NS / self.clock_owner.params.rate_hz)
+
+    def step(self, steps=1, timeout=10.0):
+        """Advance simulated time by whole steps, settling after each (what was sent first)."""
+        if not self._discovered:
+            self.wait_for_discovery()
+        now_ns = self.clock_owner.now_ns()
+        if not self.spin_until(lambda: not self.ledger.waiting_for(now_ns), timeout):
+            raise RuntimeError(f'messages sent at t={now_ns / _NS:.3f} s were not handled')
+        for _ in range(steps):
+            self.ledger.next_step(now_ns)  # forgets what was heard beyond what was sent
+            self.clock_owner.clock.step()
+            self.steps += 1
+            now_ns = self.clock_owner.now_ns()
+            for answer in self._answers.values():
+                answer.step_ns = now_ns  # each node answers at once: settled() checks the rest
+            self._settle(now_ns, timeout)
+
+    def _settle(self, now_ns, timeout):
+        if not self.spin_until(lambda: self.settled(now_ns), timeout):
+            raise RuntimeError(f'graph did not settle at t={now_ns / _NS:.3f} s')
+
+    def step_until(self, predicate, sim_timeout):
+        """Step until predicate() holds; raise after sim_timeout simulated seconds."""
+        end_ns = self.now_ns + round(sim_timeout * _NS)
+        while not predicate():
+            if self.now_ns >= end_ns:
+                raise RuntimeError('condition not reached in simulated time')
+            self.step()
+
+    def step_for(self, seconds):
+        """Step for a number of simulated seconds (rounded to whole steps)."""
+        self.step(round(seconds * _NS / self.step_ns))
+
+    def pending(self):
+        """Return how many messages sent in the graph have not been handled yet."""
+        return sum(due for _, _, due in self.ledger.waiting_for(self._now_ns()))
+
+    def _now_ns(self):
+        return self.clock_owner.now_ns() if self.clock_owner is not None else 0
+
+
 def isolated_domain_id():
     """
     Return this test run's ROS domain, claimed once for the run and exported; discovery local.
 
-    Never the domain a shell exports nor another run's: the first call claims a block of
-    domains (claim_domains) and stores its first in SIM_GRAPH_DOMAIN_ID (set that to pin one);
-    later calls and child processes reuse it through ROS_DOMAIN_ID.  The rest of the block is
-    for the run's pytest workers.
+    The first call claims a block (claim_domains) and stores its first domain in
+    SIM_GRAPH_DOMAIN_ID (set that to pin one); child processes get it as ROS_DOMAIN_ID.
     """
     domain = os.environ.get(DOMAIN_VARIABLE)
     if domain is None:
@@ -72,9 +245,8 @@ def claim_domains(directory=None):
     """
     Claim a free block of domains for this process's lifetime; return the block's first domain.
 
-    A block is held by an exclusive lock on its file in directory (DOMAIN_LOCKS, or
-    SIM_GRAPH_DOMAIN_LOCKS: one for every user, as domains are the machine's), which goes
-    with the process however it ends.  When none is free, a random block is shared.
+    A block is held by a lock on its file in directory (DOMAIN_LOCKS, or SIM_GRAPH_DOMAIN_LOCKS:
+    one for every user, as domains are the machine's).  When none is free, one is shared.
     """
     # Fast DDS maps a domain to UDP ports; 1..100 stays clear of 0 (everyone's default) and of
     # the top of the valid range.
@@ -105,11 +277,10 @@ def claim_domains(directory=None):
 
 class SimGraph(Lockstep):
     """
-    A simulator and the nodes under test in this process, stepped in lockstep (see Lockstep).
+    A simulator and the nodes under test in this process, stepped in lockstep.
 
     Without a context, the graph makes its own on an isolated domain and shuts it down on
-    close(); ``context`` is what to build the nodes under test with.  executor_class may be
-    any callable taking context=; the default is the EventsExecutor the executables spin.
+    close(); executor_class may be any callable taking context=.
     """
 
     def __init__(self, context=None, executor_class=EventsExecutor):
@@ -121,7 +292,7 @@ class SimGraph(Lockstep):
         super().__init__(executor_class(context=context))
         self.context = context
         self._probes = {}  # robot name (None: the one on odom) -> listening Probe
-        self._scans = {}  # robot name -> its _LatestScan
+        self._scans = {}  # robot name -> its latest LaserScan (a deque of one)
 
     def __enter__(self):
         return self
@@ -136,13 +307,7 @@ class SimGraph(Lockstep):
         return _overrides(params)
 
     def sim(self, stepped=True, **params):
-        """
-        Start a simulator with the given parameters (any of unicycle_sim's).
-
-        stepped (the default): it owns time (publish_clock) and the graph steps it, not the
-        wall clock.  stepped=False: it runs on its own timers, pacing its clock at
-        ``real_time_factor`` (publish_clock) or following another /clock (use_sim_time).
-        """
+        """Start a simulator with any of unicycle_sim's params; the graph steps it if stepped."""
         params.setdefault('publish_clock', stepped)
         if stepped and (not params['publish_clock'] or self.clock_owner is not None):
             raise ValueError('a stepped simulator owns the clock: one per graph, with '
@@ -200,15 +365,17 @@ class SimGraph(Lockstep):
 
     def scan(self, robot=None):
         """Return the latest LaserScan the graph has seen (robot's, if named), or None."""
-        return self._listen_to_scan(robot).msg
+        latest = self._listen_to_scan(robot)
+        return latest[0] if latest else None
 
     def _listen_to_scan(self, robot=None):
         latest = self._scans.get(robot)
         if latest is None:
-            latest = self._scans[robot] = _LatestScan()
+            latest = self._scans[robot] = collections.deque(maxlen=1)
             node = Node('sim_graph_scan', namespace=robot, context=self.context,
                         parameter_overrides=_overrides({'use_sim_time': True}))
-            node.create_subscription(LaserScan, 'scan', latest.take, 10)
+            # A lambda: rclpy reads the callback's signature, which a builtin lacks.
+            node.create_subscription(LaserScan, 'scan', lambda msg: latest.append(msg), 10)
             self.add(node)
         return latest
 
@@ -233,16 +400,6 @@ class SimGraph(Lockstep):
         self._scans = {}
         if self._own_context:
             rclpy.try_shutdown(context=self.context)
-
-
-class _LatestScan:
-    """The latest LaserScan a listener took (msg: None until the first)."""
-
-    def __init__(self):
-        self.msg = None
-
-    def take(self, msg):
-        self.msg = msg
 
 
 def _overrides(params):

@@ -12,12 +12,7 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""
-A node that stands in for a controller or a listener in tests, and what reads its messages.
-
-``Probe`` records odometry and sends Twist commands (or plays a script of them on sim-time
-ticks); the helpers read poses and speeds out of Odometry and build commands.
-"""
+"""A node that stands in for a controller or a listener in tests, and what reads its messages."""
 
 from collections.abc import Sequence
 import math
@@ -79,8 +74,7 @@ class Received(Sequence):
     """
     Messages in the order they came, kept as bytes; each becomes its message when first read.
 
-    Building every Odometry (two covariances as numpy arrays) costs far more than keeping its
-    bytes, and a test reads a few of the thousands a run sends.
+    A test reads a few of the thousands of Odometry a run sends; building each costs far more.
     """
 
     def __init__(self, msg_type):
@@ -117,8 +111,8 @@ class Probe(Node):
 
     def __init__(self, name='probe', odom_topic='odom', cmd_topic='cmd_vel', listen_only=False,
                  record_commands=False, **kwargs):
-        # No parameters of its own to serve: without the parameter and type description
-        # services (seven, each discovered by every process) a probe is far cheaper to make.
+        # Without the parameter and type description services (seven, each discovered by every
+        # process) a probe is far cheaper to make.
         kwargs.setdefault('start_parameter_services', False)
         overrides = list(kwargs.pop('parameter_overrides', None) or ())
         if not any(p.name == 'start_type_description_service' for p in overrides):
@@ -143,9 +137,7 @@ class Probe(Node):
         """Return the latest odometry, or None."""
         return self.odoms[-1] if self.odoms else None
 
-    # For the conditions a test spins on, asked after every message the graph handles: a few
-    # fields read from the latest bytes, not the whole message built (odom).
-
+    # For the conditions a test spins on (asked after every message): read from the bytes.
     @property
     def twist(self):
         """Return (linear.x, angular.z) of the latest odometry, or None; read from its bytes."""

@@ -12,12 +12,7 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""
-Start the package's executables (or any code) as a user would, and stop them like Ctrl-C.
-
-A process gets this process's environment (ROS_DOMAIN_ID, discovery range: see
-graph.isolated_domain_id) and writes its output to a file, read back by ``output()``.
-"""
+"""Start the package's executables (or any code) as a user would, and stop them like Ctrl-C."""
 
 import os
 from pathlib import Path
@@ -37,12 +32,7 @@ GDB_WAIT = 30.0
 
 
 def ros_params(*params, namespace=None, clock=None, sim_time=False):
-    """
-    Return the command-line arguments after the executable: each 'name:=value' as a parameter.
-
-    namespace puts the node there; clock remaps /clock (several simulators owning time side by
-    side need one each); sim_time adds use_sim_time:=true.
-    """
+    """Return the --ros-args for 'name:=value' parameters, namespace, /clock remap, sim time."""
     args = ['--ros-args']
     if namespace:
         args += ['-r', f'__ns:={namespace}']
@@ -114,9 +104,8 @@ class Process:
         End the process unless it has exited; a temporary log is read and removed.
 
         SIGTERM first, so that it leaves DDS cleanly (a node killed outright can leave
-        shared-memory state behind).  Still running after grace seconds, it is asked for its
-        Python stacks (SIGUSR1, see runtime.run), so its log shows where it hung; SIGKILL
-        follows STACKS_WAIT seconds later.
+        shared-memory state behind); after grace seconds its stacks go to its log (SIGUSR1,
+        then gdb), then SIGKILL.
         """
         if self.popen.poll() is None:
             self.popen.terminate()

@@ -12,8 +12,4 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""
-The simulator's world: the map, contacts and the laser scan, stepped with the robots.
-
-The modules here import no ROS packages (no rclpy, no message packages).
-"""
+"""The simulator's world: the map, contacts and the laser scan, stepped with the robots; no ROS."""

@@ -15,13 +15,10 @@
 """
 Contacts of disc robots with the map's walls and with each other (no ROS imports).
 
-A robot is a disc whose centre follows the exact arc of kinematics.integrate.  Walls: a solid
-square grown by the radius (its Minkowski sum with the disc) is bounded by its faces pushed out
-by the radius and quarter circles at its corners.  The centre's path (circle or line, in one
-formula smooth in the curvature: _Path) is intersected in closed form with the exposed faces and
-convex corners of the solid cells near it (found with numpy, piece by piece along the path); the
-earliest entry is polished by Newton steps on the exact distance.  Robots: conservative
-advancement on the distance of the centres under a bound of their relative acceleration.
+Walls: a solid square grown by the radius is bounded by its faces pushed out by the radius and
+quarter circles at its corners.  The centre's exact arc (_Path) is intersected in closed form
+with the exposed faces and convex corners near it, the earliest entry polished by Newton steps.
+Robots: conservative advancement on the distance of the centres.
 """
 
 import math
@@ -126,12 +123,7 @@ class _Path:
 
 
 class Walls:
-    """
-    What contacts of discs of one radius with one map's solid cells need, computed once.
-
-    contact() is the earliest touch along an arc, overlaps() refuses a placement.  Cells
-    outside the map are free; a changed map needs a new Walls.
-    """
+    """What contacts of discs of one radius with one map's solid cells need (outside: free)."""
 
     def __init__(self, grid, radius):
         radius = float(radius)

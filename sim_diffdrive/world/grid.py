@@ -15,10 +15,8 @@
 """
 The simulator's map: an occupancy grid read from a map_server YAML (no ROS imports).
 
-load_map() reads the YAML and its image with the rules of Nav2's map_server (nav2_map_server
-map_io.cpp, loadMapYaml and loadMapFromFile, Jazzy), so the grid published on ``map`` is the one
-map_server would publish for the same file.  GridMap.data is laid out as OccupancyGrid.data: row
-0 is the row at the origin, the bottom of the image.
+load_map() follows Nav2's map_server (map_io.cpp, Jazzy), so ``map`` is what map_server would
+publish for the same file.
 """
 
 from dataclasses import dataclass
@@ -46,13 +44,10 @@ class MapError(ValueError):
 @dataclass(frozen=True, eq=False)
 class GridMap:
     """
-    An occupancy grid in the map frame, as nav_msgs/OccupancyGrid lays it out.
+    An occupancy grid in the map frame, as nav_msgs/OccupancyGrid lays it out (read-only).
 
-    resolution is in metres per cell; origin is the (x, y, yaw) of the lower-left corner of cell
-    (row 0, col 0) in the map frame, as map_server's ``origin``; data is int8 of shape (height,
-    width), -1 unknown or 0..100, row 0 at the origin, so data.ravel() is OccupancyGrid.data;
-    solid marks the obstacle cells (value 100): robots cannot enter them, beams stop at them.
-    The arrays are read-only.
+    origin is the (x, y, yaw) of cell (0, 0)'s lower-left corner; data is int8 (height, width),
+    row 0 at the origin; solid marks the obstacle cells (100).
     """
 
     resolution: float
@@ -80,27 +75,21 @@ class GridMap:
 
     @property
     def width(self):
-        """Return the number of columns (cells along the grid's x axis)."""
+        """Return the number of columns."""
         return self.data.shape[1]
 
     @property
     def height(self):
-        """Return the number of rows (cells along the grid's y axis)."""
+        """Return the number of rows."""
         return self.data.shape[0]
 
     def to_grid(self, x, y):
-        """
-        Return a map-frame point (floats or arrays) in the grid's axes [m] from the origin corner.
-
-        Rotated by -yaw; with yaw 0 it is exactly (x - origin x, y - origin y).
-        """
+        """Return a map-frame point (floats or arrays) in the grid's axes [m] (exact for yaw 0)."""
         ox, oy, yaw = self.origin
-        dx = x - ox
-        dy = y - oy
+        dx, dy = x - ox, y - oy
         if yaw == 0.0:
             return dx, dy
-        c = math.cos(yaw)
-        s = math.sin(yaw)
+        c, s = math.cos(yaw), math.sin(yaw)
         return c * dx + s * dy, c * dy - s * dx
 
     def from_grid(self, gx, gy):
@@ -108,17 +97,11 @@ class GridMap:
         ox, oy, yaw = self.origin
         if yaw == 0.0:
             return gx + ox, gy + oy
-        c = math.cos(yaw)
-        s = math.sin(yaw)
+        c, s = math.cos(yaw), math.sin(yaw)
         return ox + c * gx - s * gy, oy + s * gx + c * gy
 
     def cell_of(self, x, y):
-        """
-        Return the (row, col) of the cell that contains a map-frame point, or None outside.
-
-        Cells are half-open: a point on the border between two cells belongs to the one with the
-        larger index, and the grid's far edges (x = width, y = height cells) are outside.
-        """
+        """Return the (row, col) of the half-open cell that holds a map-frame point, or None."""
         gx, gy = self.to_grid(x, y)
         col = math.floor(gx / self.resolution) if math.isfinite(gx) else -1
         row = math.floor(gy / self.resolution) if math.isfinite(gy) else -1
@@ -144,14 +127,7 @@ class GridMap:
 
 
 def load_map(yaml_path):
-    """
-    Read a map_server YAML and its image into a GridMap, as Nav2's map_server does.
-
-    Keys: image (relative to the YAML's folder, or absolute), resolution, origin [x, y, yaw],
-    negate (0/1, default 0), occupied_thresh (default 0.65), free_thresh (default 0.25), mode
-    (trinary, the default, scale or raw).  Raises MapError, naming the file and the key, for a
-    file that cannot be used.
-    """
+    """Read a map_server YAML and its image into a GridMap (MapError names the file and key)."""
     path = os.path.expanduser(os.fspath(yaml_path))
     where = 'map file %s' % path
     if os.path.isdir(path):

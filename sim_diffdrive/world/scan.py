@@ -12,13 +12,7 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""
-The simulated laser scan: every beam of every robot cast at once, exactly (no ROS imports).
-
-cast() finds where each beam first touches a solid cell of a GridMap (the crossing of the cell's
-boundary, not a cell centre) or another robot's disc; Scanner adds seeded noise and REP 117's
--inf/+inf.
-"""
+"""The simulated laser scan: every beam of every robot cast at once, exactly (no ROS imports)."""
 
 import math
 
@@ -47,14 +41,10 @@ def cast(grid, x, y, yaw, angles, range_max, radius=0.0, discs=True, padded=None
     """
     Return the range [m] of every beam of every robot: float64 of shape (robots, beams).
 
-    x, y, yaw: the robots' poses in the map frame (the scanner at each robot's centre), arrays
-    of shape (robots,); angles: the beams relative to the heading.  A beam ends where it first
-    touches a solid cell of grid (the exact crossing of the cell's boundary; a cell touched only
-    at a corner or along a face counts) or the disc of radius radius of another robot (exact
-    ray/circle intersection; a robot's own disc is never seen; with radius > 0 and discs only).
-    A scanner inside a solid cell or another robot's disc sees 0.0 on every beam.  No return
-    within range_max is +inf (REP 117).  Outside the map is free.  grid None: no map.  padded:
-    pad_solid(grid), when the caller keeps it (a Scanner does).
+    A beam ends where it first touches a solid cell of grid (None: no map; outside it is free;
+    the exact crossing of its boundary, a corner counts) or another robot's disc of radius
+    (with discs).  A scanner inside either sees 0.0; no return within range_max is +inf (REP
+    117).  padded: pad_solid(grid), if the caller keeps it.
     """
     x, y, yaw = (np.atleast_1d(np.asarray(v, dtype=np.float64)) for v in (x, y, yaw))
     angles = np.atleast_1d(np.asarray(angles, dtype=np.float64))
@@ -82,12 +72,7 @@ def cast(grid, x, y, yaw, angles, range_max, radius=0.0, discs=True, padded=None
 
 
 def _cast_cells(grid, padded, work, gx, gy, theta, crossings, range_max):
-    """
-    Return the distance of each ray (grid axes, metres) to the first solid cell it touches.
-
-    The crossings of both axes' grid lines are looked at BATCH by BATCH, each batch for the rays
-    that may still see something nearer than what they have seen.
-    """
+    """Return each ray's distance to its first solid cell: crossings looked at BATCH by BATCH."""
     res, width, height = grid.resolution, grid.width, grid.height
     dx, dy = np.cos(theta), np.sin(theta)
     col0 = np.clip(np.floor(gx / res + SNAP), -1, width)
@@ -170,12 +155,7 @@ class _Lines:
 
 
 def _cast_discs(ranges, x, y, yaw, angles, radius, reach):
-    """
-    Lower ranges (robots, beams) to each beam's distance to another robot's disc.
-
-    Only the beams within the angle a disc spans from a scanner are cast at it; a scanner
-    inside another disc sees 0.0.
-    """
+    """Lower ranges to each beam's distance to another robot's disc (only beams that span it)."""
     robots, beams = ranges.shape
     turn, wrapped = 2.0 * math.pi, np.mod(angles, 2.0 * math.pi)  # in one turn: around sorted
     order = np.argsort(wrapped, kind='stable')
@@ -206,13 +186,7 @@ def _cast_discs(ranges, x, y, yaw, angles, radius, reach):
 
 
 class Scanner:
-    """
-    A 2-D laser scanner over a GridMap, for all robots at once, with LaserScan's fields.
-
-    angle_min, angle_max, angle_increment, range_min and range_max are the message's fields.
-    Noise is Gaussian, from one seeded generator per Scanner: two Scanners with one seed give
-    bit-identical scans.
-    """
+    """A 2-D laser scanner over a GridMap for all robots, LaserScan's fields; seeded noise."""
 
     def __init__(self, grid, beams=360, range_min=0.12, range_max=3.5, noise_std=0.0, seed=0,
                  radius=0.0):
@@ -229,12 +203,7 @@ class Scanner:
         self._padded = pad_solid(grid) if grid is not None else None
 
     def scan(self, x, y, yaw):
-        """
-        Return the ranges of every robot's scan: float32 of shape (robots, beams).
-
-        cast() plus N(0, noise_std) on finite ranges; -inf below range_min, +inf above
-        range_max (REP 117).
-        """
+        """Return cast() plus noise: float32 (robots, beams), -inf/+inf out of range (REP 117)."""
         ranges = cast(self.grid, x, y, yaw, self.angles, self.range_max, self.radius,
                       padded=self._padded)
         if self.noise_std > 0.0:

@@ -12,14 +12,7 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""
-Robots solid to each other: each robot's track through a step, and where two first touch.
-
-A Track is a robot's pose in the map at the start of a step and the timed arcs it drove
-(kinematics.arcs' pieces, each cut where it touched a wall); ``earliest_touch`` finds the first
-moment any two tracks come two radii apart while closing in (contact.robot_contact, arc piece
-by arc piece), so the world can stop both there (no ROS imports).
-"""
+"""Robots solid to each other: each robot's track through a step, and where two first touch."""
 
 import numpy as np
 from sim_diffdrive.kinematics import integrate
