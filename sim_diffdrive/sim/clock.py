@@ -15,18 +15,10 @@
 """
 How ``unicycle_sim`` keeps time: one of four clocks, chosen once at start (``make_clock``).
 
-- ``FollowedClock`` (``publish_clock`` false): the node's own clock, wall time or another
-  node's /clock (``use_sim_time``); odometry on a timer of that clock.  On another simulator's
-  clock it takes part in that simulator's lockstep, so that simulator waits for this robot.
-- ``FreeClock`` (``publish_clock``, ``lockstep`` false): the node owns time and steps it on a
-  wall timer at up to ``real_time_factor``, pacing itself by how fast the graph reacts.
-- ``LockstepClock`` (``publish_clock``, ``lockstep``): the node owns time and steps when its
-  LockstepOwner, a policy, says every participant has answered the last step
-  (lockstep/owner.py; docs/time.md).
-- ``SteppedClock``: the node owns time and something else calls ``step()``: SimGraph, the
-  in-process harness, after each step has settled.
-
-Simulated time is kept in integer nanoseconds, so many steps add up without rounding drift.
+``FollowedClock`` follows the node's own clock (wall time, or another simulator's /clock and
+lockstep); the others own time and publish it on /clock: ``FreeClock``, ``LockstepClock``, and
+``SteppedClock`` (stepped by SimGraph).  Simulated time is kept in integer nanoseconds, so many
+steps add up without rounding drift.
 """
 
 import time
@@ -78,14 +70,11 @@ class FollowedClock:
 
     On wall time the commands and the odometry timer share the executor's one queue, so a
     backlog of commands (more than the simulator can handle, or a burst while it was held up)
-    would hold the odometry back until it was worked off: 768 robots each commanded at 50 Hz
-    once left 2 odometry steps a second.  So each command is followed by the step if one is
-    due (``take_due_step``), as the timer would have taken it just after that command, and the
-    timer skips a step that a command took less than half a period before.  On another
-    simulator's /clock that simulator's steps set the pace instead.
+    would hold the odometry back until it was worked off.  So each command is followed by the
+    step if one is due (``take_due_step``), as the timer would have taken it just after that
+    command, and the timer skips a step that a command took less than half a period before.
+    On another simulator's /clock that simulator's steps set the pace instead.
     """
-
-    owns_time = False
 
     def __init__(self, sim):
         self.sim = sim
@@ -143,7 +132,6 @@ class FollowedClock:
 class OwnedClock:
     """Simulated time that this node owns and publishes on /clock, stepped by ``step()``."""
 
-    owns_time = True
     participant = None
 
     def __init__(self, sim):
@@ -276,9 +264,9 @@ class FreeClock(_TimedClock):
     def command_arrived(self):
         """Note a robot's command: the first after a step answers it."""
         if not self._answered:
-            # Only the first command after a step answers it: commands from a publisher that
-            # does not follow the clock (teleop, a second controller, a flood) arrive at any
-            # time, and counting each would double the wait every step until time stood still.
+            # Commands from a publisher that does not follow the clock (teleop, a second
+            # controller, a flood) arrive at any time: counting each would double the wait
+            # every step until time stood still.
             self._answered = True
             reaction_s = min(time.monotonic() - self.wall, self._max_reaction_s)
             self._reaction_s = max(reaction_s, self._reaction_s)

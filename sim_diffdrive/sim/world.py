@@ -15,18 +15,13 @@
 """
 The pure world: every robot's state and the simulated time, stepped in one place (no ROS).
 
-``World`` owns, per robot, the pose, velocities, command and limits, the time its pose is
-integrated up to (integer nanoseconds), its cmd_vel deadline, the stamped commands it holds,
-and where its odometry frame lies in the map: ``command``, ``hold``, ``place``,
-``place_in_map``, ``set_limit``, ``set_timeout``, and ``step_to(t_ns)``, which returns what
-the odometry carries; timeouts and contacts wait in ``events`` for the node to log.
-
-Every robot is advanced by one path, ``_advance``: early commands at their stamps, the
-deadline, then the arcs of ``kinematics.arcs`` one by one, each cut short where the robot
-touches a wall (world/contact.py).  A fleet larger than ``ONE_BY_ONE`` with nothing special on
-the way and no walls moves in one numpy call (``kinematics.integrate_all``, bit for bit the
-same).  With walls, robots are solid to each other: a command brings every robot up to its
-time, and after the step the pairs that came within reach are searched along their arcs.
+``World`` owns every robot's pose, velocities, command, limits, cmd_vel deadline, held stamped
+commands and map -> odom, and its time in integer nanoseconds; ``step_to(t_ns)`` returns what
+the odometry carries; timeouts and contacts wait in ``events`` for the node to log.  Every
+robot is advanced by one path, ``_advance``; a fleet larger than ``ONE_BY_ONE`` with nothing
+special on the way and no walls moves in one numpy call (``kinematics.integrate_all``, bit for
+bit the same).  With walls, robots are solid to each other: a command brings every robot up to
+its time, and after the step the pairs that came within reach are searched along their arcs.
 """
 
 import bisect
