@@ -117,16 +117,13 @@ class FollowedClock:
         now_ns = self.now_ns()
         if self._wall and self._since_step_ns(now_ns) < self.sim.step_ns // 2:
             return  # a command took this step
-        self._step(now_ns)
+        self._stepped_ns = now_ns
+        self.sim.step_to(now_ns)
 
     def _since_step_ns(self, now_ns):
         """Return the wall time since the last step; a whole step if the clock went back."""
         since_ns = now_ns - self._stepped_ns
         return since_ns if since_ns >= 0 else self.sim.step_ns
-
-    def _step(self, now_ns):
-        self._stepped_ns = now_ns
-        self.sim.step_to(now_ns)
 
 
 class OwnedClock:
@@ -160,7 +157,6 @@ class OwnedClock:
 
     def step(self):
         """Advance simulated time by one step and publish odometry and then /clock."""
-        self.before_step(self.sim_ns + self.sim.step_ns)
         self.sim_ns += self.sim.step_ns
         # Odometry first: a participant that gets it before the /clock of its step waits for
         # that /clock to answer, so one answer a step covers both (participant.py).
@@ -170,13 +166,6 @@ class OwnedClock:
         if self.wall - self._owners_checked >= _OWNERS_CHECK_S:
             self._owners_checked = self.wall
             self.check_owners()
-        self.after_step()
-
-    def before_step(self, step_ns):
-        """Run just before the clock steps to step_ns (a hook)."""
-
-    def after_step(self):
-        """Run just after a step (a hook)."""
 
     def publish(self):
         # As bytes: rclpy's Clock and Time objects cost more than the rest of an idle step.
@@ -258,7 +247,8 @@ class FreeClock(_TimedClock):
             self._reaction_s *= _REACTION_DECAY
             self.step()
 
-    def after_step(self):
+    def step(self):
+        super().step()
         self._answered = False
 
     def command_arrived(self):
@@ -273,12 +263,7 @@ class FreeClock(_TimedClock):
 
 
 class LockstepClock(_TimedClock):
-    """
-    Owned time stepped when every participant has answered (see lockstep/owner.py).
-
-    The clock looks at each tick of its timer and whenever the owner has news: it asks the
-    owner how many steps it may take, takes them, and dates them on its wall schedule.
-    """
+    """Owned time stepped when every participant has answered (see lockstep/owner.py)."""
 
     def __init__(self, sim):
         super().__init__(sim)
@@ -351,5 +336,6 @@ class LockstepClock(_TimedClock):
         now = time.monotonic()
         self.wall = scheduled if now - scheduled < budget else now
 
-    def before_step(self, step_ns):
-        self.owner.next_step(step_ns)
+    def step(self):
+        self.owner.next_step(self.sim_ns + self.sim.step_ns)
+        super().step()

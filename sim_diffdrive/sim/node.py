@@ -158,7 +158,6 @@ class UnicycleSim(Node):
             raise ParameterError(
                 f"parameter 'initial_poses' must hold x, y, yaw for each of the {len(names)} "
                 f'robot(s), {3 * len(names)} values; got {len(p.initial_poses)}')
-        # The map, its walls and the scan (nothing without map_file): see surroundings.py.
         self.surroundings = open_surroundings(self, names)
         try:
             self.world = World(
@@ -171,7 +170,6 @@ class UnicycleSim(Node):
                                  'or map_file)') from None
         self.step_ns = round(_NS / p.rate_hz)
         self.clock = make_clock(self, stepped)
-        # Where else the simulator's traffic goes (an MCAP file, Foxglove): see taps/.
         self.taps = open_taps(self)
         self.robots = [Robot(self, i, name, self.publish_odom, self.take_command)
                        for i, name in enumerate(names)]

@@ -71,8 +71,7 @@ class World:
     world.contact.Walls, or None for the empty plane (robots then pass through each other).
     """
 
-    def __init__(self, poses, *, names=None, timeout_ns=0, limits=None, walls=None,
-                 ramp_step=0.001):
+    def __init__(self, poses, *, names=None, timeout_ns=0, limits=None, walls=None):
         n = len(poses)
         self.names = list(names) if names is not None else [''] * n
         self.x = np.array([float(p[0]) for p in poses])
@@ -82,7 +81,7 @@ class World:
             setattr(self, name, np.zeros(n))
         self.commanded = [(0.0, 0.0)] * n
         self.limits = {name: [float((limits or {}).get(name, 0.0))] * n for name in LIMITS}
-        self.ramp_step = ramp_step
+        self.ramp_step = 0.001  # [s] the longest sub-step of a speed ramp (kinematics.arcs)
         self.integrated_ns = np.full(n, NOT_YET, dtype=np.int64)
         self.deadline_ns = np.full(n, NO_DEADLINE, dtype=np.int64)
         self.last_command_ns = [None] * n
