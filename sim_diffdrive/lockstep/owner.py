@@ -219,8 +219,6 @@ class LockstepOwner:
         """
         ledger = self.ledger
         now = time.monotonic()
-        # Only once the step has been held that long: a step that settles in time (nearly all)
-        # sends /clock once.
         resend = bool(waiting) and now - max(wall, self._resent_wall) >= self._resend_s
         if ledger.version == self._roster_version and not resend:
             return False

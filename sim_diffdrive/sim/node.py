@@ -199,8 +199,7 @@ class UnicycleSim(Node):
     def _initial_poses(self, count):
         p = self.params
         if p.initial_poses:
-            values = p.initial_poses
-            return [tuple(values[3 * i:3 * i + 3]) for i in range(count)]
+            return [tuple(p.initial_poses[3 * i:3 * i + 3]) for i in range(count)]
         return [(p.initial_x, p.initial_y, p.initial_yaw)] * count
 
     # -- time -------------------------------------------------------------------------------
