@@ -197,10 +197,9 @@ class _SimTimeCalls:
     #2771 has the same bug), and each run moves rcl's schedule a period on.  ``on_event`` runs
     the callback only when it is due: a second event at the same clock time would run it
     twice, and one that waited in the queue until the clock had moved on would run it between
-    two due times, after the node had answered its step.  rcl's schedule is left as the
-    duplicates put it, whole periods ahead, and ``catch_up`` (after each /clock) runs each
-    call it skips, at its due time.  Nothing moves rcl's schedule, so nothing makes its timers
-    manager queue the event again (on a lossy link each such reset doubled the duplicates).
+    two due times, after the node had answered its step.  rcl's schedule is left whole periods
+    ahead, and ``catch_up`` (after each /clock) runs each call it skips, at its due time: a
+    reset of the schedule would make its timers manager queue the event again.
     """
 
     def __init__(self, timer, callback, after):

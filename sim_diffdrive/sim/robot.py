@@ -56,13 +56,12 @@ class Robot:
     """
     Robot number ``index`` of the simulator ``sim``: its topics and messages.
 
-    ``name`` is '' for the simulator's one robot in its own namespace.  Its state is robot
-    ``index`` of the world.  The node ``sim`` is used to make the robot's topics only: a robot
-    holds what it hands commands and poses to (the world, the clock, the taps, the logger),
-    not the node.  ``on_placed`` is how the node hears that a robot was set down somewhere;
-    ``on_command(robot, data)`` is what the cmd_vel subscription calls with each command's
-    bytes: the node hands them to ``take``, then steps if due, so that nothing the robot calls
-    calls back into the node.
+    ``name`` is '' for the simulator's one robot in its own namespace.  The node ``sim`` is
+    used to make the robot's topics only: a robot holds what it hands commands and poses to
+    (the world, the clock, the taps, the logger), not the node.  ``on_placed`` is how the node
+    hears that a robot was set down somewhere; ``on_command(robot, data)`` is what the cmd_vel
+    subscription calls with each command's bytes: the node hands them to ``take``, then steps
+    if due, so that nothing the robot calls calls back into the node.
     """
 
     def __init__(self, sim, index, name, on_placed, on_command):
