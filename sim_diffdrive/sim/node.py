@@ -17,8 +17,7 @@ The ``unicycle_sim`` node: Twist in on ``cmd_vel``, Odometry out on ``odom``; on
 
 The pose is integrated exactly and piecewise: brought up to the moment each command arrives
 before the command takes effect, so accuracy does not depend on ``rate_hz``.  The node wires
-parameters and topics to the pure world (world.py), each robot's topics (robot.py), the map and
-scans (surroundings.py) and the clock that decides when to step (clock.py).
+parameters and topics to the modules beside it (listed in the package docstring).
 """
 
 import re
