@@ -13,16 +13,12 @@
 # limitations under the License.
 
 """
-The one way the lockstep counts a node's messages: its MessageCounter.
+The one way the lockstep counts a node's messages: its MessageCounter (docs/time.md).
 
-Both sides of the handshake need the same numbers: how many messages a node published and
-handled per topic (and the newest header stamp of each), how many /clock messages it took.
-A participant (participant.py) sends them to the simulator in its answers; the simulator
-(owner.py) counts its own traffic the same way; the in-process engine behind SimGraph
-(testing/engine.py) gives the ledger each node's counts as its answer.  The counts come from
-wrapping the node's subscription callbacks, timer callbacks and ``publish`` methods, so the
-node's code does not change.  ``MessageCounter.of(node, ...)`` is the only place that wraps: a
-node has one counter however many users it has, each adding itself to ``listeners``.
+Participants, the simulator and the in-process engine (testing/engine.py) all count so, by
+wrapping the node's subscription and timer callbacks and ``publish`` methods, so the node's
+code does not change.  ``MessageCounter.of(node, ...)`` is the only place that wraps: a node
+has one counter however many users it has, each adding itself to ``listeners``.
 
 Being the one place that wraps rclpy's objects, it relies on rclpy behaviours that no API
 promises: a subscription's (a raw one's too) and a timer's ``callback`` attribute is read at
@@ -89,8 +85,7 @@ class MessageCounter:
         self.clock_messages = 0  # /clock messages handled, repeats included
         # The last step the clock took [ns] (None until it has stepped), and, while the
         # listeners run after a subscription callback, how far ahead of the clock the message
-        # it handled was stamped [ns] (None: no stamp, or no clock yet).  Up to a step ahead:
-        # its sender has the next step already, so the /clock of that step is on its way here.
+        # it handled was stamped [ns] (None: no stamp, or no clock yet; see participant.py).
         self.clock_step_ns = None
         self.heard_offset_ns = None
         self._sim_time_calls = {}  # sim-time timer -> its _SimTimeCalls
@@ -202,10 +197,9 @@ class _SimTimeCalls:
     #2771 has the same bug), and each run moves rcl's schedule a period on.  ``on_event`` runs
     the callback only when it is due: a second event at the same clock time would run it
     twice, and one that waited in the queue until the clock had moved on would run it between
-    two due times, after the node had answered its step.  rcl's schedule is left as the
-    duplicates put it, whole periods ahead, and ``catch_up`` (after each /clock) runs each
-    call it skips, at its due time.  Nothing moves rcl's schedule, so nothing makes its timers
-    manager queue the event again (on a lossy link each such reset doubled the duplicates).
+    two due times, after the node had answered its step.  rcl's schedule is left whole periods
+    ahead, and ``catch_up`` (after each /clock) runs each call it skips, at its due time: a
+    reset of the schedule would make its timers manager queue the event again.
     """
 
     def __init__(self, timer, callback, after):

@@ -15,22 +15,12 @@
 """
 The lockstep handshake between a simulator that owns ``/clock`` and the nodes that take part.
 
-No ROS here: the answer format and the clock owner's bookkeeping, tested with plain pytest.
-
-Each participant answers on ``/clock/answers`` (beside whatever ``/clock`` is remapped to)
-whenever it is *settled* at the latest clock
-step it has seen (its clock shows that time and none of its sim-time timers is due).  An answer
-carries cumulative counts: how many messages the node has published on each topic and how many
-it has handled on each topic it subscribes to.  Counts, not per-step flags, because DDS orders
-messages per writer only: an answer may overtake the command it covers, so the owner does not
-trust the answer alone but waits until every message that a member *sent* has been *heard* by
-every member subscribed to that topic.  A step is settled when every member has answered it
-and nothing is owed.  The in-process graph (testing/engine.py) keeps the same ledger, its
-nodes' answers their counters' live counts.
-
-Only members count.  A subscriber that does not take part (a logger, a recorder) is never
-waited for; a publisher that does not take part (a teleop) only adds messages a member hears
-beyond what it is owed, which is forgotten at the next step, so it never stalls the clock.
+No ROS here: the answer and roster formats and the clock owner's bookkeeping (StepLedger).
+Answers carry cumulative counts, not per-step flags, because DDS orders messages per writer
+only: an answer may overtake the command it covers, so the owner waits until what members
+sent has been heard by every member subscribed to it.  Only members count: a non-member's
+messages are surplus, forgotten at the next step, so they never stall the clock.  The protocol
+in full: docs/time.md ("How a node answers").
 """
 
 from dataclasses import dataclass
@@ -277,14 +267,12 @@ class StepLedger:
         (participant, topic, n) for n unstamped messages it has not handled.  A joining member
         holds the clock for its answer to each step after the one it joined in, never for a
         stamped topic: it is counted from the first otherwise settled step at which it has
-        caught up on every stamped topic it hears, so what it missed before is known.  A
-        message written while its subscription was being matched may never reach it (a DDS
-        volatile reader gets what is written after both sides matched), and held for it, the
-        clock would wait lockstep_timeout for a message that no repair brings; the next step's
-        message does come, and DDS delivers each writer's messages in order.
+        caught up on every stamped topic it hears.  A message written while its subscription
+        was being matched may never reach it (a DDS volatile reader gets what is written after
+        both sides matched), and no repair brings it; the next step's does, in writer order.
         """
-        # Most news during a step is one more answer while others are still missing: say so
-        # at once, without the counts (which cost time in proportion to members x topics).
+        # Most news is one more answer while others are missing: say so without the counts
+        # (which cost time in proportion to members x topics).
         missing = [(pid, None, 0) for pid, member in self.members.items()
                    if self._unanswered(member, now_ns)]
         if missing:

@@ -13,28 +13,17 @@
 # limitations under the License.
 
 """
-The clock owner's side of the lockstep: step when every participant has answered the last step.
+The clock owner's side of the lockstep: a policy that says when the simulator may step.
 
-``unicycle_sim`` with ``publish_clock`` and ``lockstep`` asks a LockstepOwner when it may step:
-the owner listens to the participants' answers on ``<clock>/answers`` (see handshake.py and
-participant.py), publishes who is counted on ``<clock>/roster``, and answers ``may_step``: how
-many steps the clock may take now (it freewheels until the first answer, as PX4's lockstep
-does, and then waits for the last step to settle) and whether to re-send the current /clock.
-It is a policy: it neither steps nor writes the clock, and calls nobody back.  sim/clock.py's
-LockstepClock does both, hands it each answer (``hear_answer``) and tells it of each message
-the simulator handled (``heard_message``); each says whether the step may have settled, and
-the clock then asks ``may_step``.
-
-No single lost sample may stall or skew a run.  While the clock is held the owner re-sends the
-current ``/clock`` and the roster (rclpy's TimeSource takes ``/clock`` best-effort, so a lost
-step is otherwise never repaired), and a participant that sees the same clock again answers
-again.  The first re-send waits RESEND_S, or twice the recent time between steps when that
-is longer; each next one waits twice as long, up to RESEND_MAX_S.  The package's Fast DDS
-profile (fastdds_profile.xml) repairs lost commands, odometry and answers within tens of
-milliseconds.  A participant is given up only after ``lockstep_timeout`` wall seconds in which
-nothing at all was heard from it; one that keeps answering is waited for, and what it has not
-heard after that long is forgiven with a warning, never the participant.  The simulator never
-gives itself up.
+sim/clock.py's LockstepClock hands the owner each answer (``hear_answer``) and tells it of each
+message the simulator handled (``heard_message``); each says whether the step may have
+settled, and the clock then asks ``may_step``: how many steps it may take now (it freewheels
+until the first answer, as PX4's lockstep does) and whether to re-send the current /clock.
+The owner publishes who is counted on ``<clock>/roster``; it neither steps nor writes the
+clock, and calls nobody back.  No single lost sample may stall or skew a run: rclpy's
+TimeSource takes /clock best-effort, so while the clock is held it is re-sent (RESEND_S); a
+participant is given up only after ``lockstep_timeout`` of silence, never the simulator
+itself.  docs/time.md ("When things go wrong") tells the rest.
 """
 
 import time
@@ -57,9 +46,8 @@ _MAX_CATCH_UP = 20
 # While the clock is held, /clock and the roster are re-sent [s, wall]: a participant that lost
 # the step's /clock gets it again, and takes the roster for a sign that the simulator is alive
 # (its odometry is late because time stands still).  First after RESEND_S, then twice as long
-# each time up to RESEND_MAX_S: every re-send makes every participant answer again, and at a
-# fixed 10 ms, 31 participants on two busy cores spent their time answering re-sends, so the
-# steps took longer than 10 ms, so every step was re-sent: the run crawled and stalled.
+# each time up to RESEND_MAX_S: every re-send makes every participant answer again, so at a
+# fixed short interval a busy graph spends its time answering re-sends (docs/time.md).
 RESEND_S = 0.01
 RESEND_MAX_S = 0.32
 # Weight of the newest step in the moving average of the wall time between steps.
@@ -218,9 +206,8 @@ class LockstepOwner:
     def _news(self):
         """Something the step may wait for has arrived: return whether it paces the steps."""
         self._waiting = None
-        # Without participants the clock timer alone paces the steps: stepping on every
-        # command too ran catch-up bursts from inside the command callbacks, and a simulator
-        # stepping as fast as it could then lost commands (its cmd_vel queues overflowed).
+        # Without participants the clock timer alone paces the steps: stepping on news too
+        # would run catch-up bursts inside command callbacks and overflow the cmd_vel queues.
         return len(self.ledger.members) > 1
 
     def _publish_roster(self, waiting=(), wall=None):
@@ -232,8 +219,6 @@ class LockstepOwner:
         """
         ledger = self.ledger
         now = time.monotonic()
-        # Only once the step has been held that long: a step that settles in time (nearly all)
-        # sends /clock once.
         resend = bool(waiting) and now - max(wall, self._resent_wall) >= self._resend_s
         if ledger.version == self._roster_version and not resend:
             return False
@@ -254,12 +239,7 @@ class LockstepOwner:
         return resend
 
     def _publishers_text(self, topic):
-        """
-        Say which publishers of topic this simulator's discovery knows of.
-
-        A message that never comes may be from a sender it has not discovered yet: on a lossy
-        link one side can match a writer and reader seconds before the other.
-        """
+        """Say which publishers of topic this simulator's discovery knows of."""
         names = node_names(self.sim.get_publishers_info_by_topic(topic))
         return (f'publishers of {topic} discovered here: {", ".join(names)}' if names
                 else f'no publisher of {topic} discovered here')

@@ -15,17 +15,11 @@
 """
 Take part in the simulator's lockstep: ``take_part(node)`` is the one call a node needs.
 
-The node must run on simulated time (``use_sim_time``).  From then on the simulator that owns
-``/clock`` does not advance past a step until this node has run everything due at that time
-and the messages it published have been handled by the simulator (see handshake.py).  The
-node's subscription and timer callbacks and its publishers are counted by its MessageCounter
-(counter.py), so the node's code does not change.
-
-A process that runs several nodes on sim time can make them one participant:
-``take_part(first).add(node)`` for each other node, before spinning.  The simulator then gets
-one answer per step for all of them (motion_fleet runs a fleet of motions so), sent once every
-node is settled, with their counts combined: what they sent summed, a topic handled as far as
-every node that handles it has got.
+The node runs on simulated time; its callbacks and publishers are counted by its
+MessageCounter (counter.py), so its code does not change.  ``take_part(first).add(node)``
+makes several nodes of a process one participant (motion_fleet does): one answer a step for
+them all, what they sent summed, a topic handled as far as every node that handles it has got.
+The rules for a node that takes part: docs/time.md ("Take part with your own node").
 """
 
 import time
@@ -53,13 +47,7 @@ ROSTER_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
 
 
 class Participant:
-    """
-    A process's side of the lockstep handshake (see the module docstring).
-
-    It answers for the node it was made on and for every node added to it (``add``): one
-    answer per step for them all, once each is settled, so a process that runs many nodes (a
-    fleet of motions) costs the simulator one participant, not one per node.
-    """
+    """A process's side of the lockstep: answers for its node and every node ``add``-ed."""
 
     def __init__(self, node):
         _check_sim_time(node)
@@ -76,7 +64,6 @@ class Participant:
         self.left = False
         # When the clock owner last went on without this node [ns, its clock], or None.
         self.dropped_ns = None
-        # The clock this node runs on (its TimeSource's subscription, remapped or not).
         self._clock_topic = clock_topic(node)
         self._answer_topic = answer_topic(self._clock_topic)
         self._publisher = node.create_publisher(String, self._answer_topic, ANSWER_QOS)
@@ -268,9 +255,8 @@ class Participant:
         # Not in the lockstep yet, this node catches up on what the simulator published
         # before (up to a subscription's depth of odometry per robot, behind its clock): the
         # simulator holds the clock until it has heard the newest, so answering each older
-        # one only costs both sides (a 16-motion fleet sent some 800 such answers as it
-        # joined).  The newest is stamped at the clock, or a step ahead; should a topic's
-        # newest be stamped behind it, the simulator's re-sent /clock brings the answer.
+        # one only costs both sides.  The newest is stamped at the clock, or a step ahead;
+        # should a topic's newest be stamped behind it, the re-sent /clock brings the answer.
         return offset < 0 and not self.joined
 
     def _mark(self, state, settled_ns):

@@ -15,18 +15,10 @@
 """
 How ``unicycle_sim`` keeps time: one of four clocks, chosen once at start (``make_clock``).
 
-- ``FollowedClock`` (``publish_clock`` false): the node's own clock, wall time or another
-  node's /clock (``use_sim_time``); odometry on a timer of that clock.  On another simulator's
-  clock it takes part in that simulator's lockstep, so that simulator waits for this robot.
-- ``FreeClock`` (``publish_clock``, ``lockstep`` false): the node owns time and steps it on a
-  wall timer at up to ``real_time_factor``, pacing itself by how fast the graph reacts.
-- ``LockstepClock`` (``publish_clock``, ``lockstep``): the node owns time and steps when its
-  LockstepOwner, a policy, says every participant has answered the last step
-  (lockstep/owner.py; docs/time.md).
-- ``SteppedClock``: the node owns time and something else calls ``step()``: SimGraph, the
-  in-process harness, after each step has settled.
-
-Simulated time is kept in integer nanoseconds, so many steps add up without rounding drift.
+``FollowedClock`` follows the node's own clock (wall time, or another simulator's /clock and
+lockstep); the others own time and publish it on /clock: ``FreeClock``, ``LockstepClock``, and
+``SteppedClock`` (stepped by SimGraph).  Simulated time is kept in integer nanoseconds, so many
+steps add up without rounding drift.
 """
 
 import time
@@ -78,14 +70,11 @@ class FollowedClock:
 
     On wall time the commands and the odometry timer share the executor's one queue, so a
     backlog of commands (more than the simulator can handle, or a burst while it was held up)
-    would hold the odometry back until it was worked off: 768 robots each commanded at 50 Hz
-    once left 2 odometry steps a second.  So each command is followed by the step if one is
-    due (``take_due_step``), as the timer would have taken it just after that command, and the
-    timer skips a step that a command took less than half a period before.  On another
-    simulator's /clock that simulator's steps set the pace instead.
+    would hold the odometry back until it was worked off.  So each command is followed by the
+    step if one is due (``take_due_step``), as the timer would have taken it just after that
+    command, and the timer skips a step that a command took less than half a period before.
+    On another simulator's /clock that simulator's steps set the pace instead.
     """
-
-    owns_time = False
 
     def __init__(self, sim):
         self.sim = sim
@@ -128,22 +117,18 @@ class FollowedClock:
         now_ns = self.now_ns()
         if self._wall and self._since_step_ns(now_ns) < self.sim.step_ns // 2:
             return  # a command took this step
-        self._step(now_ns)
+        self._stepped_ns = now_ns
+        self.sim.step_to(now_ns)
 
     def _since_step_ns(self, now_ns):
         """Return the wall time since the last step; a whole step if the clock went back."""
         since_ns = now_ns - self._stepped_ns
         return since_ns if since_ns >= 0 else self.sim.step_ns
 
-    def _step(self, now_ns):
-        self._stepped_ns = now_ns
-        self.sim.step_to(now_ns)
-
 
 class OwnedClock:
     """Simulated time that this node owns and publishes on /clock, stepped by ``step()``."""
 
-    owns_time = True
     participant = None
 
     def __init__(self, sim):
@@ -172,7 +157,6 @@ class OwnedClock:
 
     def step(self):
         """Advance simulated time by one step and publish odometry and then /clock."""
-        self.before_step(self.sim_ns + self.sim.step_ns)
         self.sim_ns += self.sim.step_ns
         # Odometry first: a participant that gets it before the /clock of its step waits for
         # that /clock to answer, so one answer a step covers both (participant.py).
@@ -182,13 +166,6 @@ class OwnedClock:
         if self.wall - self._owners_checked >= _OWNERS_CHECK_S:
             self._owners_checked = self.wall
             self.check_owners()
-        self.after_step()
-
-    def before_step(self, step_ns):
-        """Run just before the clock steps to step_ns (a hook)."""
-
-    def after_step(self):
-        """Run just after a step (a hook)."""
 
     def publish(self):
         # As bytes: rclpy's Clock and Time objects cost more than the rest of an idle step.
@@ -270,27 +247,23 @@ class FreeClock(_TimedClock):
             self._reaction_s *= _REACTION_DECAY
             self.step()
 
-    def after_step(self):
+    def step(self):
+        super().step()
         self._answered = False
 
     def command_arrived(self):
         """Note a robot's command: the first after a step answers it."""
         if not self._answered:
-            # Only the first command after a step answers it: commands from a publisher that
-            # does not follow the clock (teleop, a second controller, a flood) arrive at any
-            # time, and counting each would double the wait every step until time stood still.
+            # Commands from a publisher that does not follow the clock (teleop, a second
+            # controller, a flood) arrive at any time: counting each would double the wait
+            # every step until time stood still.
             self._answered = True
             reaction_s = min(time.monotonic() - self.wall, self._max_reaction_s)
             self._reaction_s = max(reaction_s, self._reaction_s)
 
 
 class LockstepClock(_TimedClock):
-    """
-    Owned time stepped when every participant has answered (see lockstep/owner.py).
-
-    The clock looks at each tick of its timer and whenever the owner has news: it asks the
-    owner how many steps it may take, takes them, and dates them on its wall schedule.
-    """
+    """Owned time stepped when every participant has answered (see lockstep/owner.py)."""
 
     def __init__(self, sim):
         super().__init__(sim)
@@ -363,5 +336,6 @@ class LockstepClock(_TimedClock):
         now = time.monotonic()
         self.wall = scheduled if now - scheduled < budget else now
 
-    def before_step(self, step_ns):
-        self.owner.next_step(step_ns)
+    def step(self):
+        self.owner.next_step(self.sim_ns + self.sim.step_ns)
+        super().step()

@@ -16,14 +16,8 @@
 The ``unicycle_sim`` node: Twist in on ``cmd_vel``, Odometry out on ``odom``; one robot or many.
 
 The pose is integrated exactly and piecewise: brought up to the moment each command arrives
-before the command takes effect, so accuracy does not depend on ``rate_hz``.  With ``robots``
-each named robot has its own topics and frames under ``<name>/`` (robot.py), and every step
-moves all robots at once (world.py, the pure world that owns every robot's state),
-bit-identical to one robot alone; with ``map_file`` they drive in a map, with walls, a laser
-scan and map -> odom (surroundings.py).  With ``publish_clock`` the node owns time: it steps a
-simulated clock by 1/``rate_hz`` seconds per step, up to ``real_time_factor`` times faster
-than the wall clock, and publishes it on ``/clock`` for nodes that run with ``use_sim_time``
-(clock.py holds the four ways of keeping time).
+before the command takes effect, so accuracy does not depend on ``rate_hz``.  The node wires
+parameters and topics to the modules beside it (listed in the package docstring).
 """
 
 import re
@@ -163,7 +157,6 @@ class UnicycleSim(Node):
             raise ParameterError(
                 f"parameter 'initial_poses' must hold x, y, yaw for each of the {len(names)} "
                 f'robot(s), {3 * len(names)} values; got {len(p.initial_poses)}')
-        # The map, its walls and the scan (nothing without map_file): see surroundings.py.
         self.surroundings = open_surroundings(self, names)
         try:
             self.world = World(
@@ -176,7 +169,6 @@ class UnicycleSim(Node):
                                  'or map_file)') from None
         self.step_ns = round(_NS / p.rate_hz)
         self.clock = make_clock(self, stepped)
-        # Where else the simulator's traffic goes (an MCAP file, Foxglove): see taps/.
         self.taps = open_taps(self)
         self.robots = [Robot(self, i, name, self.publish_odom, self.take_command)
                        for i, name in enumerate(names)]
@@ -206,8 +198,7 @@ class UnicycleSim(Node):
     def _initial_poses(self, count):
         p = self.params
         if p.initial_poses:
-            values = p.initial_poses
-            return [tuple(values[3 * i:3 * i + 3]) for i in range(count)]
+            return [tuple(p.initial_poses[3 * i:3 * i + 3]) for i in range(count)]
         return [(p.initial_x, p.initial_y, p.initial_yaw)] * count
 
     # -- time -------------------------------------------------------------------------------
@@ -227,10 +218,6 @@ class UnicycleSim(Node):
         now_ns = self.clock.take_due_step()
         if now_ns is not None:
             self.step_to(now_ns)
-
-    def advance_all(self, now_ns):
-        """Integrate every robot up to now_ns (before something changes: a parameter, a pose)."""
-        self.world.step_to(now_ns)
 
     def _log_events(self):
         """Say what happened in the world since the last look: timeouts, contacts."""
@@ -255,7 +242,7 @@ class UnicycleSim(Node):
 
     def _on_parameter(self, name, value):
         """Make a live parameter's new value take effect (declare() has checked and stored it)."""
-        self.advance_all(self.now_ns())  # up to now, the old value held
+        self.world.step_to(self.now_ns())  # up to now, the old value held
         robots = self.robots
         if name == 'cmd_vel_timeout':
             self.world.set_timeout(round(value * _NS))
@@ -301,7 +288,7 @@ class UnicycleSim(Node):
         return SetParametersResult(successful=True)
 
     def _on_reset(self, request, response):
-        self.advance_all(self.now_ns())
+        self.world.step_to(self.now_ns())  # up to now, the old poses held
         refused = 0
         for robot, pose in zip(self.robots, self._initial_poses(len(self.robots))):
             try:

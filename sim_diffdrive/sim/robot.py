@@ -15,15 +15,11 @@
 """
 One robot of ``unicycle_sim``: its topics, frames, messages and warnings.
 
-The simulator (node.py) keeps time; the world (world.py) holds every robot's state and steps
-them all at once.  A Robot is what is each robot's own on the ROS side, as a turtle is in
-turtlesim: ``cmd_vel`` in, ``odom`` and ``path`` out (under ``<name>/`` when the simulator has
-``robots``), frames ``<name>/odom`` -> ``<name>/base_footprint``, and ``initialpose`` (RViz's
-"2D Pose Estimate") to set the robot down somewhere, at rest.  A command is checked here
-and handed to the world at the moment it arrives (the robot integrated up to then first), so
-it takes effect then, whatever the step.  Commands arrive as their CDR bytes (a raw
-subscription) and are read where their fields lie (cdr.py); odometry leaves as bytes that the
-simulator writes for every robot at once (node.py, cdr.OdometryLayout).
+What is each robot's own on the ROS side, as a turtle is in turtlesim; its state lives in the
+world (world.py).  A command is checked here and handed to the world at the moment it arrives,
+so it takes effect then, whatever the step.  Commands arrive as their CDR bytes (a raw
+subscription), read where their fields lie (cdr.py); odometry leaves as bytes the simulator
+writes for every robot at once (node.py, cdr.OdometryLayout).
 """
 
 from collections import deque
@@ -51,9 +47,8 @@ _NS = 1_000_000_000
 # No ground robot commands more than this [m/s or rad/s]; larger values are refused as garbage.
 COMMAND_LIMIT = 1e4
 # How many cmd_vel messages wait to be handled.  Every publisher on a robot's cmd_vel shares
-# this queue: with 10, ten messages from anyone arriving while the simulator was held up pushed
-# out a command before it, and a lockstep participant's command could be lost to a teleop
-# (test_faults.py).  1000 holds 3 s of a teleop at 333 Hz.
+# this queue, so in a short one a teleop's burst while the simulator is held up pushes out a
+# lockstep participant's command; 1000 holds 3 s of a teleop at 333 Hz.
 CMD_VEL_DEPTH = 1000
 
 
@@ -61,13 +56,12 @@ class Robot:
     """
     Robot number ``index`` of the simulator ``sim``: its topics and messages.
 
-    ``name`` is '' for the simulator's one robot in its own namespace.  Its state is robot
-    ``index`` of the world.  The node ``sim`` is used to make the robot's topics only: a robot
-    holds what it hands commands and poses to (the world, the clock, the taps, the logger),
-    not the node.  ``on_placed`` is how the node hears that a robot was set down somewhere;
-    ``on_command(robot, data)`` is what the cmd_vel subscription calls with each command's
-    bytes: the node hands them to ``take_twist`` or ``take_stamped``, then steps if due, so
-    that nothing the robot calls calls back into the node.
+    ``name`` is '' for the simulator's one robot in its own namespace.  The node ``sim`` is
+    used to make the robot's topics only: a robot holds what it hands commands and poses to
+    (the world, the clock, the taps, the logger), not the node.  ``on_placed`` is how the node
+    hears that a robot was set down somewhere; ``on_command(robot, data)`` is what the cmd_vel
+    subscription calls with each command's bytes: the node hands them to ``take``, then steps
+    if due, so that nothing the robot calls calls back into the node.
     """
 
     def __init__(self, sim, index, name, on_placed, on_command):
@@ -89,14 +83,12 @@ class Robot:
         prefix = f'{name}/' if name else ''
         self.label = f'{name}: ' if name else ''
         p = sim.params
-        # Odometry goes out as bytes the simulator writes for every robot at once (node.py,
-        # cdr.OdometryLayout); commands come in as bytes, read where their fields lie.
         self.odom_pub = sim.create_publisher(Odometry, prefix + 'odom', 10)
         self.path_pub = sim.create_publisher(Path, prefix + 'path', 1)
         self.cmd_type = TwistStamped if p.stamped else Twist
+        self.take = self.take_stamped if p.stamped else self.take_twist
         # DDS says when a publisher on cmd_vel comes or goes (matched), so a second one is
         # warned about at once, with no graph query per robot per step or second.
-        self.take = self.take_stamped if p.stamped else self.take_twist
         sub = sim.create_subscription(
             self.cmd_type, prefix + 'cmd_vel', lambda data: on_command(self, data),
             CMD_VEL_DEPTH, raw=True,
@@ -158,16 +150,12 @@ class Robot:
 
     def take_twist(self, data):
         """Take a geometry_msgs/Twist's bytes and follow it."""
-        if self.taps:
-            self.taps.write(self.cmd_topic, data, self.clock.now_ns())
         command = self._read(data, read_twist, _twist_fields)
         if command is not None:
             self.command(*command)
 
     def take_stamped(self, data):
         """Take a geometry_msgs/TwistStamped's bytes: refuse it when stale, else follow it."""
-        if self.taps:
-            self.taps.write(self.cmd_topic, data, self.clock.now_ns())
         command = self._read(data, read_twist_stamped, _stamped_fields)
         if command is None:
             return
@@ -185,7 +173,9 @@ class Robot:
         self.command(linear, angular, stamp_ns)
 
     def _read(self, data, read, fields):
-        """Return read(data); through rclpy in an encoding read() does not know; None if bad."""
+        """Tap data; return read(data) (through rclpy in another encoding), None if bad."""
+        if self.taps:
+            self.taps.write(self.cmd_topic, data, self.clock.now_ns())
         try:
             try:
                 return read(data)
@@ -305,9 +295,6 @@ class DrivenPath:
 
     def __iter__(self):
         return iter(self._poses)
-
-    def __len__(self):
-        return len(self._poses)
 
     def append(self, pose):
         self._poses.append(pose)

@@ -15,11 +15,9 @@
 """
 The world around the robots on the ROS side: the map, the laser scans, map -> odom.
 
-With ``map_file`` (a map_server YAML) the robots drive in that map, as in Nav2's loopback
-simulator: the map goes out once on ``map`` (transient local, as map_server's), each robot's
-LaserScan on ``<robot>/scan`` at ``scan_rate_hz``, ``map_frame_id`` -> each odometry frame on
-``/tf`` with the odometry, and each base frame -> ``scan_frame_id`` on ``/tf_static``.  The
-geometry is ROS-free (sim_diffdrive/world/).
+With ``map_file`` the robots drive in a map_server map, as in Nav2's loopback simulator
+(docs/world.md): the map on ``map``, each robot's LaserScan, map -> odom on ``/tf`` and base
+-> scan on ``/tf_static``.  The geometry is ROS-free (sim_diffdrive/world/).
 """
 
 import array

@@ -15,18 +15,13 @@
 """
 The pure world: every robot's state and the simulated time, stepped in one place (no ROS).
 
-``World`` owns, per robot, the pose, velocities, command and limits, the time its pose is
-integrated up to (integer nanoseconds), its cmd_vel deadline, the stamped commands it holds,
-and where its odometry frame lies in the map: ``command``, ``hold``, ``place``,
-``place_in_map``, ``set_limit``, ``set_timeout``, and ``step_to(t_ns)``, which returns what
-the odometry carries; timeouts and contacts wait in ``events`` for the node to log.
-
-Every robot is advanced by one path, ``_advance``: early commands at their stamps, the
-deadline, then the arcs of ``kinematics.arcs`` one by one, each cut short where the robot
-touches a wall (world/contact.py).  A fleet larger than ``ONE_BY_ONE`` with nothing special on
-the way and no walls moves in one numpy call (``kinematics.integrate_all``, bit for bit the
-same).  With walls, robots are solid to each other: a command brings every robot up to its
-time, and after the step the pairs that came within reach are searched along their arcs.
+``World`` owns every robot's pose, velocities, command, limits, cmd_vel deadline, held stamped
+commands and map -> odom, and its time in integer nanoseconds; ``step_to(t_ns)`` returns what
+the odometry carries; timeouts and contacts wait in ``events`` for the node to log.  Every
+robot is advanced by one path, ``_advance``; a fleet larger than ``ONE_BY_ONE`` with nothing
+special on the way and no walls moves in one numpy call (``kinematics.integrate_all``, bit for
+bit the same).  With walls, robots are solid to each other: a command brings every robot up to
+its time, and after the step the pairs that came within reach are searched along their arcs.
 """
 
 import bisect
@@ -76,8 +71,7 @@ class World:
     world.contact.Walls, or None for the empty plane (robots then pass through each other).
     """
 
-    def __init__(self, poses, *, names=None, timeout_ns=0, limits=None, walls=None,
-                 ramp_step=0.001):
+    def __init__(self, poses, *, names=None, timeout_ns=0, limits=None, walls=None):
         n = len(poses)
         self.names = list(names) if names is not None else [''] * n
         self.x = np.array([float(p[0]) for p in poses])
@@ -87,7 +81,7 @@ class World:
             setattr(self, name, np.zeros(n))
         self.commanded = [(0.0, 0.0)] * n
         self.limits = {name: [float((limits or {}).get(name, 0.0))] * n for name in LIMITS}
-        self.ramp_step = ramp_step
+        self.ramp_step = 0.001  # [s] the longest sub-step of a speed ramp (kinematics.arcs)
         self.integrated_ns = np.full(n, NOT_YET, dtype=np.int64)
         self.deadline_ns = np.full(n, NO_DEADLINE, dtype=np.int64)
         self.last_command_ns = [None] * n
