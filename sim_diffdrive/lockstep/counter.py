@@ -15,7 +15,7 @@
 """
 The one way the lockstep counts a node's messages: its MessageCounter (docs/time.md).
 
-Participants, the simulator and the in-process engine (testing/engine.py) all count so, by
+Participants, the simulator and the in-process engine (testing/graph.py) all count so, by
 wrapping the node's subscription and timer callbacks and ``publish`` methods, so the node's
 code does not change.  ``MessageCounter.of(node, ...)`` is the only place that wraps: a node
 has one counter however many users it has, each adding itself to ``listeners``.

@@ -277,7 +277,7 @@ class StepLedger:
                    if self._unanswered(member, now_ns)]
         if missing:
             return missing
-        # Asked after every callback in process (testing/engine.py): one pass over members.
+        # Asked after every callback in process (testing/graph.py): one pass over members.
         reasons, caught_up, leaving = [], [], []
         stamps = self._latest_stamps()
         for pid, member in self.members.items():
