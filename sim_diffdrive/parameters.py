@@ -44,8 +44,10 @@ class Spec:
     """
     One parameter: name, default (its type decides the parameter's type) and meaning.
 
-    A default of None declares it without a value, ``kind`` naming its type; ``low_open``
-    excludes ``low``; ``items`` is an array's element type (float or str).
+    A default of None declares it without a value, ``kind`` naming its type.  ``low``/``high``
+    bound numbers (and each element of a number array), ``low_open`` excludes ``low``;
+    ``choices`` restricts strings; ``length`` fixes an array's size, ``items`` its elements'
+    type (float or str); ``live`` lets it change while the node runs (else read-only).
     """
 
     name: str
@@ -197,7 +199,12 @@ class Values:
 
 
 def _clock_chosen_at_start(node):
-    """Make use_sim_time read-only: these nodes choose their clock once, at start."""
+    """
+    Make use_sim_time read-only: these nodes choose their clock once, at start.
+
+    Switched mid-run, the simulator's stepping and a motion's lockstep and ticks would stop
+    while the set was reported successful.
+    """
     node.set_descriptor('use_sim_time', ParameterDescriptor(
         name='use_sim_time', type=node.describe_parameter('use_sim_time').type,
         description='Run on simulated time from /clock (the simulator publishes it with '
