@@ -41,6 +41,9 @@ from sim_diffdrive.parameters import live_parameters
 from sim_diffdrive.parameters import ParameterError
 from sim_diffdrive.sim.node import PARAMETERS
 from sim_diffdrive.sim.node import UnicycleSim
+from sim_diffdrive.sim.odom_tf import TF_QOS
+from sim_diffdrive.sim.odom_tf import TF_TOPIC
+from tf2_msgs.msg import TFMessage
 
 NS = 1_000_000_000
 STEP_NS = NS // 50  # the simulator's default rate_hz
@@ -306,19 +309,31 @@ def test_every_parameter_is_live_or_read_only(ros_context, node_class):
 # -- as a user does it: a simulator process, set from another process ------------------------
 
 def test_a_simulator_process_applies_a_live_set_and_refuses_a_read_only_one(graph, procs):
-    sim = procs('unicycle_sim', 'unicycle_sim', *ros_params('rate_hz:=50.0'))
+    # In a namespace, where its frames take the namespace's name; that its /tf reaches another
+    # process is checked here too (test_tf.py: the messages themselves), one process start-up
+    # (0.8 CPU s) for both.
+    sim = procs('unicycle_sim', 'unicycle_sim', *ros_params('rate_hz:=50.0',
+                                                            namespace='/robot1'))
     # The clients before the probe that waits for odometry: discovery announces readers in
     # order, so odometry heard shows that the simulator has matched their reply readers too
     # (rmw_fastrtps drops a response whose reader it has not matched within 100 ms).
-    probe = graph.probe('setter', use_sim_time=False)
-    params = Parameters(graph, probe, '/unicycle_sim')
-    graph.wait_for_odometry(process=sim)
+    probe = graph.probe('setter', namespace='/robot1', use_sim_time=False)
+    params = Parameters(graph, probe, '/robot1/unicycle_sim')
+    tf = []
+    probe.create_subscription(TFMessage, TF_TOPIC, tf.append, TF_QOS)
+    odoms = graph.listener('robot1')
+    assert graph.spin_until(lambda: len(tf) >= 5 and odoms.odom is not None, 20.0), \
+        sim.describe()
+    transform = tf[-1].transforms[0]
+    assert (transform.header.frame_id, transform.child_frame_id) == (
+        'robot1/odom', 'robot1/base_footprint')
+    assert (odoms.odom.header.frame_id, odoms.odom.child_frame_id) == (
+        'robot1/odom', 'robot1/base_footprint')
     assert not params.set_param('rate_hz', '10.0').successful
     result = params.set_param('cmd_vel_timeout', '1.0')
     assert result.successful, result.reason
     assert graph.spin_until(lambda: probe.cmd_pub.get_subscription_count() > 0)
     probe.send(0.5, 0.0)  # once: only the new timeout stops it
-    odoms = graph.odometry
     assert graph.spin_until(lambda: is_moving(odoms.odom), 10.0), sim.describe()
     assert graph.spin_until(lambda: not is_moving(odoms.odom), 10.0), sim.describe()
     # The robot moves for the timeout, 1.0 s (not the 0.5 s it started with), from when the
@@ -329,6 +344,7 @@ def test_a_simulator_process_applies_a_live_set_and_refuses_a_read_only_one(grap
     output = sim.output()
     assert 'cmd_vel_timeout is now 1.0 s' in output
     assert 'No cmd_vel for 1 s: stopping the robot' in output
+    assert 'Traceback' not in output
 
 
 def test_use_sim_time_is_chosen_at_start_and_refused_at_run_time(graph):

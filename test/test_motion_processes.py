@@ -83,6 +83,24 @@ def settle(graph, probe, seconds=0.3):
     return pose_of(probe.odom)
 
 
+# First, before the module's simulator starts: this test needs none, and the simulator,
+# freewheeling at REAL_TIME_FACTOR with three robots, would run on through it.
+def test_odom_motion_without_odometry_gives_up_and_never_moves(graph, procs):
+    probe = graph.probe(use_sim_time=False)
+    motion = procs('odom_out_and_back', 'odom_out_and_back', '--ros-args',
+                   '-p', 'start_timeout:=1.0')
+    # Be the robot's cmd_vel subscriber, but never publish odometry.
+    received = []
+    probe.create_subscription(type(probe.cmd_pub.msg_type()), 'cmd_vel', received.append, 10)
+    code, output = finish(graph, motion, timeout=20.0)
+    # A cmd_vel subscriber is not the robot (test_lockstep_faults.py has the robot come late):
+    # it gives up, says why and never says Done.
+    assert code == 1, output
+    assert 'Gave up' in output and 'odometry' in output
+    assert 'Done' not in output and 'Traceback' not in output
+    assert all(m.linear.x == 0.0 and m.angular.z == 0.0 for m in received)
+
+
 def test_typed_answers_through_a_pipe_rotate_the_robot(graph, robot, procs):
     probe = robot('typed')
     motion = procs('rotate_robot', 'rotate_robot', *rotate_args('typed'), stdin=subprocess.PIPE)
@@ -125,19 +143,3 @@ def test_parameters_skip_the_questions(graph, robot, procs):
     assert 'Enter' not in output
     _, _, yaw = settle(graph, probe)
     assert angle_error(yaw, math.pi) < math.radians(90.0 / RATE_HZ) * 1.01
-
-
-def test_odom_motion_without_odometry_gives_up_and_never_moves(graph, procs):
-    probe = graph.probe(use_sim_time=False)
-    motion = procs('odom_out_and_back', 'odom_out_and_back', '--ros-args',
-                   '-p', 'start_timeout:=1.0')
-    # Be the robot's cmd_vel subscriber, but never publish odometry.
-    received = []
-    probe.create_subscription(type(probe.cmd_pub.msg_type()), 'cmd_vel', received.append, 10)
-    code, output = finish(graph, motion, timeout=20.0)
-    # A cmd_vel subscriber is not the robot (test_lockstep_faults.py has the robot come late):
-    # it gives up, says why and never says Done.
-    assert code == 1, output
-    assert 'Gave up' in output and 'odometry' in output
-    assert 'Done' not in output and 'Traceback' not in output
-    assert all(m.linear.x == 0.0 and m.angular.z == 0.0 for m in received)

@@ -35,9 +35,6 @@ from rclpy.serialization import deserialize_message
 from rclpy.serialization import serialize_message
 from sim_diffdrive.cdr import TransformLayout
 from sim_diffdrive.harness import pose_of
-from sim_diffdrive.harness import ros_params
-from sim_diffdrive.harness import start
-from sim_diffdrive.harness import stop
 from sim_diffdrive.parameters import Spec
 from sim_diffdrive.sim.node import UnicycleSim
 from sim_diffdrive.sim.odom_tf import namespaced_frame
@@ -205,20 +202,6 @@ def test_tf2_msgs_is_installed_and_round_trips_through_serialization():
     assert get_package_share_directory('tf2_msgs')
 
 
-# -- across processes ----------------------------------------------------------------------------
-
-def test_the_executable_publishes_tf_that_another_process_hears(graph):
-    sim = start('unicycle_sim', *ros_params('rate_hz:=20.0', namespace='/robot1'))
-    try:
-        tf = listen(graph)
-        probe = graph.probe(namespace='/robot1', listen_only=True, use_sim_time=False)
-        assert graph.spin_until(lambda: len(tf.messages) >= 5 and probe.odom is not None,
-                                timeout=20.0), sim.describe()
-        transform = tf.messages[-1].transforms[0]
-        assert (transform.header.frame_id, transform.child_frame_id) == (
-            'robot1/odom', 'robot1/base_footprint')
-        assert (probe.odom.header.frame_id, probe.odom.child_frame_id) == (
-            'robot1/odom', 'robot1/base_footprint')
-    finally:
-        stop(sim)
-    assert 'Traceback' not in sim.output()
+# Across processes: the executable's /tf, in a namespace, heard by another process is checked
+# with its live parameters, one process for both (test_live_parameters.py,
+# test_a_simulator_process_applies_a_live_set_and_refuses_a_read_only_one).

@@ -16,7 +16,8 @@
 The rows of ``python tools/bench.py``, from the bottom up.
 
 ``originals`` (the ROS 1 programs, pure maths), ``core`` (Row, the ``@row(group)`` registry,
-Run), ``one_process`` (rows 1-6), ``processes`` (7-12), ``fleet`` (13-18), ``suite`` (19, ``make
-test``).  A row is ``@row('group') def key(run): return Row(measure, project, reference, note,
-target, met, data)``, with ``run.once(measure, *args)`` for what rows share.
+Run), ``one_process`` (rows 1-6), ``processes`` (7-12), ``fleet`` (13-18; ``load``, the process
+that loads its simulators), ``suite`` (19, ``make test``).  A row is ``@row('group') def
+key(run): return Row(measure, project, reference, note, target, met, data)``, with
+``run.once(measure, *args)`` for what rows share.
 """

@@ -22,27 +22,23 @@ import time
 from benchmark import core
 from benchmark.core import Row
 from benchmark.core import row
+from benchmark.load import RATE_HZ
 from benchmark.processes import drive_text
 from benchmark.processes import motions_run
 from builtin_interfaces.msg import Time
-from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
-import rclpy
-from rclpy.clock import Clock
-from rclpy.clock import ClockType
-from rclpy.executors import ExternalShutdownException
 from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
 from sim_diffdrive import harness
-from sim_diffdrive.participant import take_part
 from sim_diffdrive.sim.node import PARAMETERS
 
-RATE_HZ = 50.0
 FREE_CLOCK_RTF = 10000.0  # the achievable factor's real_time_factor: far above what it reaches
 fmt3 = '{:.3f}'.format
-LOAD = ('import sys; sys.path.insert(0, %r); from benchmark.fleet import load; '
+# The load's own module (benchmark/load.py) imports rclpy and the lockstep only: not this one's
+# harness, numpy and motions, 0.2 CPU s more at each of its starts.
+LOAD = ('import sys; sys.path.insert(0, %r); from benchmark.load import load; '
         'load(*sys.argv[1:4])' % os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 
@@ -168,54 +164,6 @@ def fleet_windows(run):
     return dict(sorted(wall.items())), free, {
         'no_subscriber_s': alone, 'one_subscriber_s': one, 'published': s.fleet_messages,
         'heard': heard}
-
-
-class Commander(Node):
-    """Twists to robots r0.. in namespace at 50 Hz, alternating two values."""
-
-    def __init__(self, robots, namespace, sim_time, counts):
-        super().__init__('bench_fleet_commander', namespace=namespace, enable_rosout=False,
-                         parameter_overrides=[Parameter('use_sim_time', value=sim_time)])
-        self.pubs = [self.create_publisher(Twist, f'r{k}/cmd_vel', 10) for k in range(robots)]
-        self.twists = harness.twist(0.1, 0.2), harness.twist(0.1, 0.3)
-        self.counts, self.matched = counts, False
-        self.create_timer(1.0 / RATE_HZ, self.send)
-        self.participant = take_part(self) if sim_time else None
-
-    def send(self):
-        # As a motion waits for its robot: in lockstep, a command sent early would be lost.
-        self.matched = self.matched or (self.get_clock().now().nanoseconds > 0 and all(
-            pub.get_subscription_count() for pub in self.pubs))
-        if self.matched:
-            for pub in self.pubs:
-                pub.publish(self.twists[self.counts['ticks'] % 2])
-            self.counts['ticks'] += 1
-
-
-def load(mode, robots, namespace):
-    """
-    Load a simulator from a process of its own, so that the simulator's CPU is its own.
-
-    ``wall``: Twists to namespace/r0.. at 50 Hz; ``lockstep``: the same on sim time, in the
-    simulator's lockstep; ``listen``: bench_odom's subscriber.  Prints its counts every 10 ms.
-    """
-    rclpy.init()
-    counts, executor, node = {'ticks': 0, 'heard': 0}, EventsExecutor(), Node('bench_load')
-    node.create_subscription(Odometry, 'bench_odom', lambda _: counts.update(
-        heard=counts['heard'] + 1), 10)
-    commander = Commander(int(robots), namespace, mode == 'lockstep', counts) \
-        if mode != 'listen' else None
-    part = getattr(commander, 'participant', None)
-    node.create_timer(0.01, lambda: print(f'load {counts["ticks"]} {counts["heard"]} '
-                                          f'{int(bool(part and part.joined))}', flush=True),
-                      clock=Clock(clock_type=ClockType.STEADY_TIME))
-    for each in filter(None, (node, commander)):
-        executor.add_node(each)
-    try:
-        while rclpy.ok():  # (EventsExecutor.spin() runs no timer in rclpy 7.1.6)
-            executor.spin_once(timeout_sec=0.01)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
 
 
 def in_real_time(run):
