@@ -133,10 +133,11 @@ def run_main(main_process, capfd):
     Call an executable's main() in this process, as its console script would; (code, output).
 
     ``run_main(main, executable, *args)``: main gets [executable, *args] as its argv, the
-    command line of the executable (test_faults.py starts each executable as a process, which
-    shows that main's return is the exit code).  The output is what the call wrote to this
-    process's stdout and stderr (its log lines).  For a refusal at start: no process start-up
-    (0.8 CPU s) to show the path from the command line to exit code 2.
+    command line of the executable (test_colcon_layout.py checks that its console script calls
+    that main; test_faults.py shows, once per package, that main's return is the exit code).
+    The output is what the call wrote to this process's stdout and stderr (its log lines).  For
+    a refusal at start: no process start-up (0.8 CPU s) to show the path from the command line
+    to exit code 2.
     """
     def call(main, executable, *args):
         capfd.readouterr()

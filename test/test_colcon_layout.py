@@ -21,6 +21,7 @@ share/ament_index/resource_index/packages, then <prefix>/lib/<package>/<executab
 
 import configparser
 import glob
+import importlib
 import os
 import shutil
 import subprocess
@@ -92,9 +93,25 @@ def test_package_is_in_the_ament_index(indexed):
         assert installed.read() == source.read()
 
 
+# What each installed console script calls: the main() that test_faults.py, test_sim_*.py and
+# test_motion_fleet.py call in the pytest process (run_main) stands for its executable.
+ENTRY_POINTS = {
+    'unicycle_sim': 'sim_diffdrive.sim.node:main',
+    'rotate_robot': 'motion_challenges.rotate_robot:main',
+    'circle_back_and_forth': 'motion_challenges.circle_back_and_forth:main',
+    'timed_out_and_back': 'motion_challenges.timed_out_and_back:main',
+    'odom_out_and_back': 'motion_challenges.odom_out_and_back:main',
+    'motion_fleet': 'motion_challenges.motion_fleet:main',
+}
+
+
 def test_every_console_script_is_an_executable_in_lib_package(indexed):
     scripts = installed_console_scripts(indexed)
     assert CONTRACT_EXECUTABLES <= set(scripts), sorted(CONTRACT_EXECUTABLES - set(scripts))
+    assert scripts == ENTRY_POINTS
+    for target in scripts.values():
+        module, function = target.split(':')
+        assert callable(getattr(importlib.import_module(module), function)), target
     lib_dir = os.path.join(get_package_prefix(PACKAGE), 'lib', PACKAGE)
     for name in scripts:
         path = os.path.join(lib_dir, name)

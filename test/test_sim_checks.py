@@ -136,7 +136,7 @@ def test_distinct_frames_start(graph, namespace, params, expected):
 def test_a_simulator_with_a_bad_frame_on_its_command_line_exits_2_naming_it(run_main):
     # Every refusal of a frame is tested in-process above: the executable's main() shows the
     # path from -p to exit 2 once, with the value that the command line hands over as one word
-    # (test_faults.py shows each executable's main() returning its exit code as a process).
+    # (test_faults.py shows main()'s return as the exit code of a process once per package).
     named = 'base_frame_id'
     code, output = run_main(node_module.main, 'unicycle_sim', '--ros-args', '-p',
                             'base_frame_id:=base link')

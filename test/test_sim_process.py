@@ -95,8 +95,8 @@ def test_shows_its_stacks_turns_on_command_and_exits_cleanly_on_sigint(graph, st
 
 
 def test_bad_parameter_exits_with_usage_code_naming_it(run_main):
-    # Its main() in this process, as the console script calls it: test_faults.py shows every
-    # executable's main() returning its exit code as a process.
+    # Its main() in this process, as the console script calls it (test_colcon_layout.py); a
+    # process shows main()'s return is the exit code once per package (test_faults.py).
     code, output = run_main(main, 'unicycle_sim', '--ros-args', '-p', 'rate_hz:=-5.0')
     assert code == 2, output
     assert "'rate_hz'" in output

@@ -269,8 +269,8 @@ def test_bad_worlds_are_refused_by_name(ros_context, tmp_path):
 
 
 def test_a_missing_map_file_ends_unicycle_sim_with_exit_2_naming_it(run_main, tmp_path):
-    # Its main() in this process, as the console script calls it (test_faults.py shows each
-    # executable's main() returning its exit code as a process).
+    # Its main() in this process, as the console script calls it (test_colcon_layout.py; a
+    # process shows main()'s return is the exit code once per package, test_faults.py).
     missing = str(tmp_path / 'nowhere.yaml')
     code, output = run_main(sim_main, 'unicycle_sim', '--ros-args', '-p',
                             f'map_file:={missing}')
