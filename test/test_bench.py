@@ -137,10 +137,17 @@ def test_quick_run_writes_every_row(tmp_path):
          '--domain-id', str(DOMAIN_ID)],
         env=dict(os.environ), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
         start_new_session=True)
+    out = None
     try:
         out, err = bench.communicate(timeout=120)
     except subprocess.TimeoutExpired:
-        os.killpg(bench.pid, signal.SIGKILL)
+        pass
+    finally:  # however it ended (a hang, a failure, Ctrl-C): nothing it started lives on
+        try:
+            os.killpg(bench.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass  # the group is empty: all its processes ended
+    if out is None:
         out, err = bench.communicate()
         pytest.fail('the quick bench did not end within 120 s:\n' + out[-3000:] + err[-3000:])
     assert bench.returncode == 0, out[-3000:] + err[-3000:]
@@ -164,6 +171,8 @@ def test_quick_run_writes_every_row(tmp_path):
     assert rows['scan_cast']['fleet_cast_s'] < rows['scan_cast']['fleet_loop_s']
     assert tuple(rows['rtf_processes']['rtf']) == sizes.process_motions
     assert rows['rtf_processes']['round_trip_us'] > 0.0
+    assert rows['rtf_processes']['bare_step_us'] > 0.0  # (NaN, from no bare steps, is not)
+    assert rows['rtf_processes']['step_over_round_trip'] > 0.0
     assert rows['latency']['samples'] + rows['latency']['lost'] == sizes.latency_samples
     assert rows['cpu_idle']['idle_percent'] >= 0.0
     assert rows['cpu_idle']['rclpy_floor_percent'] > 0.0
