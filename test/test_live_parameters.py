@@ -37,6 +37,7 @@ from rclpy.parameter import parameter_value_to_python
 from sim_diffdrive.harness import is_moving
 from sim_diffdrive.harness import pose_of
 from sim_diffdrive.harness import ros_params
+from sim_diffdrive.harness import stop
 from sim_diffdrive.parameters import live_parameters
 from sim_diffdrive.parameters import ParameterError
 from sim_diffdrive.sim.node import PARAMETERS
@@ -341,7 +342,7 @@ def test_a_simulator_process_applies_a_live_set_and_refuses_a_read_only_one(grap
     # Judged by the pose: on a busy machine (a busy loop beside four pytest workers) the
     # odometry steps came late enough that the moving ones spanned 0.935 s, with the stop exact.
     assert pose_of(odoms.odom) == pytest.approx((0.5, 0.0, 0.0), abs=1e-9), sim.describe()
-    output = sim.output()
+    output = stop(sim)  # Ctrl-C: its shutdown is checked too
     assert 'cmd_vel_timeout is now 1.0 s' in output
     assert 'No cmd_vel for 1 s: stopping the robot' in output
     assert 'Traceback' not in output
