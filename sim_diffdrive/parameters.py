@@ -66,9 +66,7 @@ class Spec:
     def type_(self):
         if self.kind is not None:
             return self.kind
-        if isinstance(self.default, list):
-            return list
-        return type(self.default)
+        return list if isinstance(self.default, list) else type(self.default)
 
     def descriptor(self):
         descriptor = ParameterDescriptor(
