@@ -77,13 +77,8 @@ def message_definition(name):
 
 
 def _dependencies(text, package):
-    found = set()
-    for match in _FIELD_TYPE.finditer(text):
-        field_type = match.group(1)
-        if field_type in _PRIMITIVES:
-            continue
-        found.add(field_type if '/' in field_type else f'{package}/{field_type}')
-    return found
+    field_types = {match.group(1) for match in _FIELD_TYPE.finditer(text)} - _PRIMITIVES
+    return {name if '/' in name else f'{package}/{name}' for name in field_types}
 
 
 def _msg_text(name):
