@@ -137,13 +137,11 @@ class Lockstep:
 
     def wait_for_discovery(self, timeout=10.0):
         """Spin until every publisher has matched every in-graph subscription of its topic."""
-        subscribers = {}
-        for node in self.nodes:
-            for sub in node.subscriptions:
-                subscribers[sub.topic_name] = subscribers.get(sub.topic_name, 0) + 1
+        subscribers = collections.Counter(
+            sub.topic_name for node in self.nodes for sub in node.subscriptions)
 
         def matched():
-            return all(pub.get_subscription_count() >= subscribers.get(pub.topic_name, 0)
+            return all(pub.get_subscription_count() >= subscribers[pub.topic_name]
                        for node in self.nodes for pub in node.publishers)
         if not self.spin_until(matched, timeout, poll=0.01):
             raise RuntimeError('in-process nodes did not discover each other')
@@ -200,11 +198,8 @@ class Lockstep:
             now_ns = self.clock_owner.now_ns()
             for answer in self._answers.values():
                 answer.step_ns = now_ns  # each node answers at once: settled() checks the rest
-            self._settle(now_ns, timeout)
-
-    def _settle(self, now_ns, timeout):
-        if not self.spin_until(lambda: self.settled(now_ns), timeout):
-            raise RuntimeError(f'graph did not settle at t={now_ns / _NS:.3f} s')
+            if not self.spin_until(lambda: self.settled(now_ns), timeout):
+                raise RuntimeError(f'graph did not settle at t={now_ns / _NS:.3f} s')
 
     def step_until(self, predicate, sim_timeout):
         """Step until predicate() holds; raise after sim_timeout simulated seconds."""

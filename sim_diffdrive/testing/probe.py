@@ -189,7 +189,5 @@ class Probe(Node):
 
     def odom_after(self, t_ns):
         """Return the first odometry stamped at or after t_ns (sim time), or None."""
-        for i in range(len(self.odoms)):
-            if self.odoms.stamp_ns(i) >= t_ns:
-                return self.odoms[i]
-        return None
+        return next((self.odoms[i] for i in range(len(self.odoms))
+                     if self.odoms.stamp_ns(i) >= t_ns), None)
