@@ -225,7 +225,6 @@ class MotionFleet(Node):
 
     @staticmethod
     def _left(deadline):
-        """Return the seconds until deadline [monotonic], at least 1 ms."""
         return max(deadline - time.monotonic(), 0.001)
 
 

@@ -50,8 +50,7 @@ class _Interrupts:
     """SIGINT/SIGTERM: KeyboardInterrupt once, before the run spins; a flag otherwise."""
 
     def __init__(self):
-        self.deferred = False
-        self.requested = False
+        self.deferred = self.requested = False
 
     def __call__(self, signum, frame):
         self.requested = True
@@ -172,7 +171,6 @@ def run(make_node, args=None):
 
 
 def _as_list(nodes):
-    """Return nodes (one node, or a list or tuple of them) as a list."""
     return list(nodes) if isinstance(nodes, (list, tuple)) else [nodes]
 
 

@@ -129,8 +129,7 @@ class Probe(Node):
                 (time.monotonic(), time.time(), msg)), 200)
         self._script = []
         self._tick = None
-        self.script_started_at = None
-        self.script_done_at = None
+        self.script_started_at = self.script_done_at = None
 
     @property
     def odom(self):
