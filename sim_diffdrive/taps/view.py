@@ -15,15 +15,10 @@
 """
 The run, live in a browser (view_port): Rerun's web viewer, fed on simulated time.
 
-``BrowserView`` starts the wheel's ``rerun`` program on 127.0.0.1 only (gRPC on view_port + 1
-when free), serves the page on ``view_port`` (view_page.py) and logs ``world/robots``,
-``world/heading``, ``world/map``, ``world/scan``, ``world/paths`` (broken at a jump) and
-``speed/linear``, ``speed/angular`` (achieved and commanded): numpy arrays, shaped by the
-plain functions at the end.  The simulator's thread only copies each step's arrays; a thread
-sends frames at most 30 times a wall second, each kind of shape in one call for all robots
-(one entity per robot costs about 1 ms per robot-step).  The program gets a configuration
-directory of its own with analytics disabled, and dies with the simulator (``setpriv
---pdeathsig``).
+How and why (the rerun program, the frames, privacy): docs/visualization.md, "In the browser".
+``BrowserView`` logs ``world/robots``, ``world/heading``, ``world/map``, ``world/scan``,
+``world/paths`` (broken at a jump) and ``speed/linear``, ``speed/angular`` (achieved and
+commanded) as numpy arrays, shaped by the plain functions at the end.
 """
 
 import atexit
