@@ -22,6 +22,7 @@ executor runs, so neither a callback nor the final stop (``shutdown_hook``) is c
 """
 
 from contextlib import contextmanager
+from contextlib import suppress
 import faulthandler
 import gc
 import signal
@@ -75,10 +76,8 @@ def destroyed_if_refused(node):
     except KeyboardInterrupt:
         # An interrupt inside an rclpy call can leave the node half made, and rclpy then fails
         # to destroy it; the process is ending, and what is left goes with it.
-        try:
+        with suppress(Exception):
             node.destroy_node()
-        except Exception:
-            pass
         raise
     except BaseException:
         node.destroy_node()

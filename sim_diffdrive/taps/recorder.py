@@ -125,10 +125,8 @@ class McapRecorder:
 
     def _abandon(self):
         """Close the file without writing more (what a failed write left stays as it is)."""
-        try:
+        with contextlib.suppress(OSError):  # the buffered bytes cannot be written either
             self._file.close()
-        except OSError:
-            pass  # the buffered bytes cannot be written either: already reported
 
 
 @contextlib.contextmanager

@@ -23,6 +23,7 @@ commanded) as numpy arrays, shaped by the plain functions at the end.
 
 import atexit
 import collections
+import contextlib
 import os
 import shutil
 import socket
@@ -371,13 +372,11 @@ class _Frames:
 
 def rerun_program():
     """Return the path of the rerun program the rerun-sdk wheel installed."""
-    try:
+    with contextlib.suppress(ImportError):
         import rerun_cli
         program = os.path.join(os.path.dirname(rerun_cli.__file__), 'rerun')
         if os.access(program, os.X_OK):
             return program
-    except ImportError:
-        pass
     program = shutil.which('rerun')
     if program is None:
         raise ImportError('the rerun program of rerun-sdk is not installed')
@@ -390,11 +389,9 @@ def _grpc_port(host, view_port):
         with socket.socket() as probe:
             # As the rerun program binds: connections in TIME_WAIT do not keep the port.
             probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-            try:
+            with contextlib.suppress(OSError):
                 probe.bind((host, view_port + 1))
                 return view_port + 1
-            except OSError:
-                pass
     return _free_port(host)
 
 

@@ -21,6 +21,7 @@ due, so an answer lands on its step whatever the machine's load.
 """
 
 import collections
+import contextlib
 import fcntl
 import itertools
 import os
@@ -248,11 +249,9 @@ def claim_domains(directory=None):
     starts = list(range(1, 101, DOMAIN_BLOCK))
     random.SystemRandom().shuffle(starts)
     directory = directory or os.environ.get('SIM_GRAPH_DOMAIN_LOCKS', DOMAIN_LOCKS)
-    try:
+    with contextlib.suppress(OSError):
         os.makedirs(directory, exist_ok=True)
         os.chmod(directory, 0o1777)  # every user's runs lock here (refused if not ours)
-    except OSError:
-        pass
     for start in starts:
         try:
             # Read-only is enough for flock, so a file another user made serves as well.
