@@ -107,13 +107,10 @@ class Lockstep:
             answer.leaving = True
             self.ledger.receive(answer, answer.step_ns)
 
-        if not self.nodes:
-            return
-
         # A destroyed publisher leaves the graph a little later: wait, so that the next node on
         # its topic is not taken for a second publisher.
         def forgotten():
-            return all(self.nodes[0].count_publishers(topic) <= sum(
+            return not self.nodes or all(self.nodes[0].count_publishers(topic) <= sum(
                 pub.topic_name == topic for n in self.nodes for pub in n.publishers)
                 for topic in topics)
         self.spin_until(forgotten, 10.0, poll=0.005)
