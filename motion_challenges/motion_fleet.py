@@ -66,14 +66,12 @@ def fleet_plan(robots, motions, namespace='/'):
     if not robots:
         raise ParameterError("parameter 'robots' must name at least one robot, e.g. "
                              '-p robots:=[robot1,robot2]; got []')
-    seen = set()
-    plan = []
+    plan = {}  # robot namespace -> robot, in the order of robots
     for robot in robots:
         robot_ns = _robot_namespace(namespace, robot)
-        if robot_ns in seen:
+        if robot_ns in plan:
             raise ParameterError(f"parameter 'robots' names {robot!r} twice; got {robots!r}")
-        seen.add(robot_ns)
-        plan.append((robot, robot_ns))
+        plan[robot_ns] = robot
     if len(motions) not in (1, len(robots)):
         raise ParameterError(
             f"parameter 'motions' must have one motion for all robots or one per robot "
@@ -84,7 +82,7 @@ def fleet_plan(robots, motions, namespace='/'):
                                  + ', '.join(_MOTIONS))
     if len(motions) == 1:
         motions = motions * len(robots)
-    return [(robot, robot_ns, motion) for (robot, robot_ns), motion in zip(plan, motions)]
+    return [(robot, robot_ns, motion) for (robot_ns, robot), motion in zip(plan.items(), motions)]
 
 
 def _robot_namespace(namespace, robot):
@@ -214,10 +212,9 @@ class MotionFleet(Node):
                 f'Not acknowledged within {MotionNode.stop_ack_timeout:g} s: '
                 f'{" and ".join(unheard)} (a subscriber is gone or stalled, or the link is '
                 'lossy)')
-        ended = []
-        for (robot, _, motion), node in zip(self.plan, self.motions):
-            state = f'exit code {node.exit_code}' if node.done else 'stopped before the end'
-            ended.append(f'{robot} {motion}: {state}')
+        ended = [f'{robot} {motion}: '
+                 + (f'exit code {node.exit_code}' if node.done else 'stopped before the end')
+                 for (robot, _, motion), node in zip(self.plan, self.motions)]
         if ended:
             self.get_logger().info('Motions: ' + '; '.join(ended))
 
@@ -228,7 +225,6 @@ class MotionFleet(Node):
 
     @staticmethod
     def _left(deadline):
-        """Return the seconds until deadline [monotonic], at least 1 ms."""
         return max(deadline - time.monotonic(), 0.001)
 
 

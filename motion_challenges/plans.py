@@ -16,6 +16,7 @@
 
 import bisect
 from dataclasses import dataclass
+import itertools
 import math
 
 from sim_diffdrive.angles import normalize_angle
@@ -72,13 +73,9 @@ class PiecewisePlan:
                 raise TypeError(f'expected a Segment, got {segment!r}')
         self.repeat = bool(repeat)
         # _knots[i] is the start time of segment i; _linear[i], _angular[i] the integrals so far.
-        self._knots = [0.0]
-        self._linear = [0.0]
-        self._angular = [0.0]
-        for segment in self.segments:
-            self._knots.append(self._knots[-1] + segment.duration)
-            self._linear.append(self._linear[-1] + segment.linear * segment.duration)
-            self._angular.append(self._angular[-1] + segment.angular * segment.duration)
+        self._knots = [0.0, *itertools.accumulate(s.duration for s in self.segments)]
+        self._linear = [0.0, *itertools.accumulate(s.linear * s.duration for s in self.segments)]
+        self._angular = [0.0, *itertools.accumulate(s.angular * s.duration for s in self.segments)]
         self.cycle_duration = self._knots[-1]
 
     @property

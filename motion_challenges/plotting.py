@@ -128,8 +128,7 @@ def _arrow(axes, pose, size, color, label, marker):
 
 def draw_run(axes, trajectory, start=None, end=None, goal=None, title='', legend=True):
     """Draw a trajectory [(x, y, yaw), ...] with start, end and goal poses on axes."""
-    xs = [p[0] for p in trajectory]
-    ys = [p[1] for p in trajectory]
+    xs, ys = [p[0] for p in trajectory], [p[1] for p in trajectory]
     axes.plot(xs, ys, '-', color='tab:blue', lw=1.5, label='driven (odometry)')
     poses = [(pose, color, label, marker) for pose, color, label, marker in (
         (goal, 'tab:orange', 'goal', 's'), (start, 'tab:green', 'start', 'D'),

@@ -96,16 +96,13 @@ class RotateRobot(TimedMotion):
             command = super().control(now_ns)
             turned = self.elapsed(now_ns) * self.speed
         else:
-            command, turned = self._closed_loop(now_ns)
+            (_, predicted), (_, turn_rate) = self.predict(now_ns)
+            angular = self.spin.command(self.turned.total, predicted, turn_rate)
+            command = None if angular is None else (0.0, angular)
+            turned = self.spin.progress(self.turned.total, predicted)
         self.progress(f'Turned {math.degrees(min(turned, self.goal)):.1f} of '
                       f'{self.request.angle_deg:g} deg')
         return command
-
-    def _closed_loop(self, now_ns):
-        (_, predicted), (_, turn_rate) = self.predict(now_ns)
-        angular = self.spin.command(self.turned.total, predicted, turn_rate)
-        turned = self.spin.progress(self.turned.total, predicted)
-        return (None if angular is None else (0.0, angular)), turned
 
     def goal_pose(self, start):
         return rotation_end((start.x, start.y, start.yaw), self.goal, self.sign < 0)

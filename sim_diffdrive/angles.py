@@ -45,8 +45,7 @@ class YawAccumulator:
     """
 
     def __init__(self, yaw=None):
-        self._last_yaw = yaw
-        self.total = 0.0
+        self.reset(yaw)
 
     def reset(self, yaw):
         """Start counting from heading yaw."""
@@ -55,9 +54,7 @@ class YawAccumulator:
 
     def update(self, yaw):
         """Add the change from the previous heading and return the total turned so far."""
-        if self._last_yaw is None:
-            self._last_yaw = yaw
-            return self.total
-        self.total += normalize_angle(yaw - self._last_yaw)
+        if self._last_yaw is not None:
+            self.total += normalize_angle(yaw - self._last_yaw)
         self._last_yaw = yaw
         return self.total

@@ -121,13 +121,8 @@ class UnicycleModel:
 
     def reset(self, x, y, yaw):
         """Put the robot at (x, y, yaw), at rest, with a zero command."""
-        self.x = x
-        self.y = y
-        self.yaw = normalize_angle(yaw)
-        self.linear = 0.0
-        self.angular = 0.0
-        self.target_linear = 0.0
-        self.target_angular = 0.0
+        self.x, self.y, self.yaw = x, y, normalize_angle(yaw)
+        self.linear = self.angular = self.target_linear = self.target_angular = 0.0
 
     def command(self, linear, angular):
         """Set the velocity command; speed limits apply at once, acceleration limits over time."""

@@ -33,6 +33,8 @@ from rcl_interfaces.msg import SetParametersResult
 from rclpy.parameter import Parameter
 
 READ_ONLY_NOTE = ' Read-only: set at start.'
+# What a bool or a str parameter refuses a value of another type with.
+_MUST_BE = {bool: 'must be true or false', str: 'must be a string'}
 
 
 class ParameterError(ValueError):
@@ -66,9 +68,7 @@ class Spec:
     def type_(self):
         if self.kind is not None:
             return self.kind
-        if isinstance(self.default, list):
-            return list
-        return type(self.default)
+        return list if isinstance(self.default, list) else type(self.default)
 
     def descriptor(self):
         descriptor = ParameterDescriptor(
@@ -98,13 +98,9 @@ class Spec:
         """Return value converted to this parameter's type, or raise ParameterError."""
         if value is None and self.default is None:
             return None
-        if self.type_ is bool:
-            if not isinstance(value, bool):
-                raise self._error(value, 'must be true or false')
-            return value
-        if self.type_ is str:
-            if not isinstance(value, str):
-                raise self._error(value, 'must be a string')
+        if self.type_ in _MUST_BE:
+            if not isinstance(value, self.type_):
+                raise self._error(value, _MUST_BE[self.type_])
             if self.choices and value not in self.choices:
                 raise self._error(value, 'must be one of ' + ', '.join(self.choices))
             return value

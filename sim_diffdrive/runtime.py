@@ -22,6 +22,7 @@ executor runs, so neither a callback nor the final stop (``shutdown_hook``) is c
 """
 
 from contextlib import contextmanager
+from contextlib import suppress
 import faulthandler
 import gc
 import signal
@@ -50,8 +51,7 @@ class _Interrupts:
     """SIGINT/SIGTERM: KeyboardInterrupt once, before the run spins; a flag otherwise."""
 
     def __init__(self):
-        self.deferred = False
-        self.requested = False
+        self.deferred = self.requested = False
 
     def __call__(self, signum, frame):
         self.requested = True
@@ -76,10 +76,8 @@ def destroyed_if_refused(node):
     except KeyboardInterrupt:
         # An interrupt inside an rclpy call can leave the node half made, and rclpy then fails
         # to destroy it; the process is ending, and what is left goes with it.
-        try:
+        with suppress(Exception):
             node.destroy_node()
-        except Exception:
-            pass
         raise
     except BaseException:
         node.destroy_node()
@@ -172,7 +170,6 @@ def run(make_node, args=None):
 
 
 def _as_list(nodes):
-    """Return nodes (one node, or a list or tuple of them) as a list."""
     return list(nodes) if isinstance(nodes, (list, tuple)) else [nodes]
 
 

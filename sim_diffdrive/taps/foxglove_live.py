@@ -69,10 +69,8 @@ class FoxgloveLive:
         self._channels = {}  # ROS topic -> Channel carrying CDR
         self._types = {}  # ROS topic -> message class of the bytes given on it
         self._scene = channels.SceneUpdateChannel(SCENE_TOPIC, context=self._context)
-        self._transforms = None
-        if not node.params.publish_tf:
-            self._transforms = channels.FrameTransformsChannel(
-                TRANSFORM_TOPIC, context=self._context)
+        self._transforms = None if node.params.publish_tf else channels.FrameTransformsChannel(
+            TRANSFORM_TOPIC, context=self._context)
         self._scene_walls = {}  # robot frame -> when its scene entity was last sent [monotonic]
         self._path_wall = 0.0
         node.get_logger().info(f'Foxglove: {self.url} (Open connection in Foxglove)')

@@ -67,23 +67,14 @@ def message_definition(name):
     def with_dependencies(name):
         text = _msg_text(name)
         package = name.partition('/')[0]
-        for dependency in sorted(_dependencies(text, package)):
+        field_types = {match.group(1) for match in _FIELD_TYPE.finditer(text)} - _PRIMITIVES
+        for dependency in sorted({t if '/' in t else f'{package}/{t}' for t in field_types}):
             if dependency not in seen:
                 seen.add(dependency)
                 text += f'\n{SEPARATOR}\nMSG: {dependency}\n' + with_dependencies(dependency)
         return text
 
     return with_dependencies(name)
-
-
-def _dependencies(text, package):
-    found = set()
-    for match in _FIELD_TYPE.finditer(text):
-        field_type = match.group(1)
-        if field_type in _PRIMITIVES:
-            continue
-        found.add(field_type if '/' in field_type else f'{package}/{field_type}')
-    return found
 
 
 def _msg_text(name):

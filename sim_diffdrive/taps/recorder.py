@@ -52,8 +52,7 @@ class McapRecorder:
         self.name = f'record_file {self.path}'
         self._node = node
         self._logger = node.get_logger()
-        self._closed = False
-        self._failed = False
+        self._closed = self._failed = False
         self._count = 0
         self._schemas = {}  # type name -> schema id
         self._channels = {}  # (topic, message class) -> channel id
@@ -126,10 +125,8 @@ class McapRecorder:
 
     def _abandon(self):
         """Close the file without writing more (what a failed write left stays as it is)."""
-        try:
+        with contextlib.suppress(OSError):  # the buffered bytes cannot be written either
             self._file.close()
-        except OSError:
-            pass  # the buffered bytes cannot be written either: already reported
 
 
 @contextlib.contextmanager

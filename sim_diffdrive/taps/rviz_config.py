@@ -40,13 +40,10 @@ RobotView = collections.namedtuple('RobotView', 'name odom_frame base_frame topi
 def robot_views(namespace='', robots=()):
     """Return a RobotView per robot (one unnamed for none): frames as unicycle_sim names them."""
     prefix = namespace.strip('/')
-    views = []
-    for name in robots or ['']:
-        odom, base = (_prefixed(name, _prefixed(prefix, frame))
-                      for frame in (ODOM_FRAME, BASE_FRAME))
-        topics = ''.join(f'/{part}' for part in (prefix, name) if part)
-        views.append(RobotView(name, odom, base, topics))
-    return views
+    return [RobotView(name, *(_prefixed(name, _prefixed(prefix, frame))
+                              for frame in (ODOM_FRAME, BASE_FRAME)),
+                      ''.join(f'/{part}' for part in (prefix, name) if part))
+            for name in robots or ['']]
 
 
 def rviz_config(template, namespace='', robots=(), fixed_frame=None):
@@ -61,12 +58,10 @@ def rviz_config(template, namespace='', robots=(), fixed_frame=None):
     for display in manager['Displays']:
         if display['Class'] in _PER_SIMULATOR:
             displays.append(_with_topics(display, f'/{prefix}' if prefix else ''))
-            continue
-        if display['Class'] not in _PER_ROBOT:
+        elif display['Class'] in _PER_ROBOT:
+            displays += [_for_robot(display, view, label=bool(robots)) for view in views]
+        else:
             displays.append(display)
-            continue
-        for view in views:
-            displays.append(_for_robot(display, view, label=bool(robots)))
     manager['Displays'] = displays
     tools = []
     for tool in manager.get('Tools', []):

@@ -15,19 +15,15 @@
 """
 The run, live in a browser (view_port): Rerun's web viewer, fed on simulated time.
 
-``BrowserView`` starts the wheel's ``rerun`` program on 127.0.0.1 only (gRPC on view_port + 1
-when free), serves the page on ``view_port`` (view_page.py) and logs ``world/robots``,
-``world/heading``, ``world/map``, ``world/scan``, ``world/paths`` (broken at a jump) and
-``speed/linear``, ``speed/angular`` (achieved and commanded): numpy arrays, shaped by the
-plain functions at the end.  The simulator's thread only copies each step's arrays; a thread
-sends frames at most 30 times a wall second, each kind of shape in one call for all robots
-(one entity per robot costs about 1 ms per robot-step).  The program gets a configuration
-directory of its own with analytics disabled, and dies with the simulator (``setpriv
---pdeathsig``).
+How and why (the rerun program, the frames, privacy): docs/visualization.md, "In the browser".
+``BrowserView`` logs ``world/robots``, ``world/heading``, ``world/map``, ``world/scan``,
+``world/paths`` (broken at a jump) and ``speed/linear``, ``speed/angular`` (achieved and
+commanded) as numpy arrays, shaped by the plain functions at the end.
 """
 
 import atexit
 import collections
+import contextlib
 import os
 import shutil
 import socket
@@ -206,10 +202,7 @@ class BrowserView:
         rr, rec = self._rr, self._rec
         stamps, x, y, yaw = frame.stamps, frame.x[-1], frame.y[-1], frame.yaw[-1]
         self._set_time(stamps[-1])
-        if self._sim_clock:
-            times = rr.TimeColumn(TIMELINE, duration=stamps * 1e-9)
-        else:
-            times = rr.TimeColumn(TIMELINE, timestamp=stamps.astype('datetime64[ns]'))
+        times = rr.TimeColumn(TIMELINE, **self._when(stamps))
         count, zeros = len(x), np.zeros(len(x))
         positions = np.column_stack([x, y, zeros])
         quaternions = np.column_stack([zeros, zeros, np.sin(0.5 * yaw), np.cos(0.5 * yaw)])
@@ -235,10 +228,13 @@ class BrowserView:
                 positions=positions, colors=self._colors[owners]))
 
     def _set_time(self, stamp_ns):
+        self._rec.set_time(TIMELINE, **self._when(np.int64(stamp_ns)))
+
+    def _when(self, stamps_ns):
+        """Return the timeline's value of stamps [ns]: seconds on sim time, else dates."""
         if self._sim_clock:
-            self._rec.set_time(TIMELINE, duration=int(stamp_ns) * 1e-9)
-        else:
-            self._rec.set_time(TIMELINE, timestamp=np.datetime64(int(stamp_ns), 'ns'))
+            return {'duration': stamps_ns * 1e-9}
+        return {'timestamp': stamps_ns.astype('datetime64[ns]')}
 
     def _log_static(self, names, grid=None):
         """Log what does not change during the run: axes, colours, names, line styles, map."""
@@ -376,11 +372,8 @@ class _Frames:
 
 def rerun_program():
     """Return the path of the rerun program the rerun-sdk wheel installed."""
-    try:
+    with contextlib.suppress(ImportError):
         import rerun_cli
-    except ImportError:
-        rerun_cli = None
-    if rerun_cli is not None:
         program = os.path.join(os.path.dirname(rerun_cli.__file__), 'rerun')
         if os.access(program, os.X_OK):
             return program
@@ -396,11 +389,9 @@ def _grpc_port(host, view_port):
         with socket.socket() as probe:
             # As the rerun program binds: connections in TIME_WAIT do not keep the port.
             probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-            try:
+            with contextlib.suppress(OSError):
                 probe.bind((host, view_port + 1))
                 return view_port + 1
-            except OSError:
-                pass
     return _free_port(host)
 
 
@@ -449,10 +440,8 @@ def scan_points(ranges, angles, x, y, yaw):
     owners, beams = np.nonzero(np.isfinite(ranges))
     hit = ranges[owners, beams]
     heading = np.asarray(yaw, dtype=float)[owners] + np.asarray(angles, dtype=float)[beams]
-    points = np.empty((len(hit), 2))
-    points[:, 0] = np.asarray(x, dtype=float)[owners] + hit * np.cos(heading)
-    points[:, 1] = np.asarray(y, dtype=float)[owners] + hit * np.sin(heading)
-    return points, owners
+    return np.column_stack([np.asarray(x, dtype=float)[owners] + hit * np.cos(heading),
+                            np.asarray(y, dtype=float)[owners] + hit * np.sin(heading)]), owners
 
 
 def solid_boxes(grid):
@@ -464,13 +453,9 @@ def solid_boxes(grid):
     res = grid.resolution
     gx, gy = 0.5 * (starts + ends) * res, (rows + 0.5) * res
     mx, my = grid.from_grid(gx, gy)
-    centers = np.zeros((len(rows), 3))
-    centers[:, 0], centers[:, 1] = mx, my
-    half_sizes = np.empty((len(rows), 3))
-    half_sizes[:, 0] = 0.5 * (ends - starts) * res
-    half_sizes[:, 1] = 0.5 * res
-    half_sizes[:, 2] = MAP_HALF_HEIGHT
-    return centers, half_sizes
+    ones = np.ones(len(rows))
+    half_sizes = [0.5 * (ends - starts) * res, 0.5 * res * ones, MAP_HALF_HEIGHT * ones]
+    return np.column_stack([mx, my, 0.0 * ones]), np.column_stack(half_sizes)
 
 
 def robot_colors(count):

@@ -21,6 +21,7 @@ due, so an answer lands on its step whatever the machine's load.
 """
 
 import collections
+import contextlib
 import fcntl
 import itertools
 import os
@@ -106,13 +107,10 @@ class Lockstep:
             answer.leaving = True
             self.ledger.receive(answer, answer.step_ns)
 
-        if not self.nodes:
-            return
-
         # A destroyed publisher leaves the graph a little later: wait, so that the next node on
         # its topic is not taken for a second publisher.
         def forgotten():
-            return all(self.nodes[0].count_publishers(topic) <= sum(
+            return not self.nodes or all(self.nodes[0].count_publishers(topic) <= sum(
                 pub.topic_name == topic for n in self.nodes for pub in n.publishers)
                 for topic in topics)
         self.spin_until(forgotten, 10.0, poll=0.005)
@@ -137,13 +135,11 @@ class Lockstep:
 
     def wait_for_discovery(self, timeout=10.0):
         """Spin until every publisher has matched every in-graph subscription of its topic."""
-        subscribers = {}
-        for node in self.nodes:
-            for sub in node.subscriptions:
-                subscribers[sub.topic_name] = subscribers.get(sub.topic_name, 0) + 1
+        subscribers = collections.Counter(
+            sub.topic_name for node in self.nodes for sub in node.subscriptions)
 
         def matched():
-            return all(pub.get_subscription_count() >= subscribers.get(pub.topic_name, 0)
+            return all(pub.get_subscription_count() >= subscribers[pub.topic_name]
                        for node in self.nodes for pub in node.publishers)
         if not self.spin_until(matched, timeout, poll=0.01):
             raise RuntimeError('in-process nodes did not discover each other')
@@ -200,11 +196,8 @@ class Lockstep:
             now_ns = self.clock_owner.now_ns()
             for answer in self._answers.values():
                 answer.step_ns = now_ns  # each node answers at once: settled() checks the rest
-            self._settle(now_ns, timeout)
-
-    def _settle(self, now_ns, timeout):
-        if not self.spin_until(lambda: self.settled(now_ns), timeout):
-            raise RuntimeError(f'graph did not settle at t={now_ns / _NS:.3f} s')
+            if not self.spin_until(lambda: self.settled(now_ns), timeout):
+                raise RuntimeError(f'graph did not settle at t={now_ns / _NS:.3f} s')
 
     def step_until(self, predicate, sim_timeout):
         """Step until predicate() holds; raise after sim_timeout simulated seconds."""
@@ -253,11 +246,9 @@ def claim_domains(directory=None):
     starts = list(range(1, 101, DOMAIN_BLOCK))
     random.SystemRandom().shuffle(starts)
     directory = directory or os.environ.get('SIM_GRAPH_DOMAIN_LOCKS', DOMAIN_LOCKS)
-    try:
+    with contextlib.suppress(OSError):
         os.makedirs(directory, exist_ok=True)
         os.chmod(directory, 0o1777)  # every user's runs lock here (refused if not ours)
-    except OSError:
-        pass
     for start in starts:
         try:
             # Read-only is enough for flock, so a file another user made serves as well.

@@ -129,8 +129,7 @@ class Probe(Node):
                 (time.monotonic(), time.time(), msg)), 200)
         self._script = []
         self._tick = None
-        self.script_started_at = None
-        self.script_done_at = None
+        self.script_started_at = self.script_done_at = None
 
     @property
     def odom(self):
@@ -189,7 +188,5 @@ class Probe(Node):
 
     def odom_after(self, t_ns):
         """Return the first odometry stamped at or after t_ns (sim time), or None."""
-        for i in range(len(self.odoms)):
-            if self.odoms.stamp_ns(i) >= t_ns:
-                return self.odoms[i]
-        return None
+        return next((self.odoms[i] for i in range(len(self.odoms))
+                     if self.odoms.stamp_ns(i) >= t_ns), None)

@@ -14,6 +14,7 @@
 
 """Start the package's executables (or any code) as a user would, and stop them like Ctrl-C."""
 
+import contextlib
 import os
 from pathlib import Path
 import shutil
@@ -166,10 +167,8 @@ def stop(process, signum=signal.SIGINT, timeout=5.0):
     """Send signum (Ctrl-C) unless it has exited, kill it after timeout; return its output."""
     if process.poll() is None:
         process.send(signum)
-        try:
+        with contextlib.suppress(subprocess.TimeoutExpired):
             process.wait(timeout)
-        except subprocess.TimeoutExpired:
-            pass
     process.kill()
     return process.output()
 
@@ -197,21 +196,17 @@ def kill_all(processes, grace=3.0):
 def _wait_all(processes, timeout):
     deadline = time.monotonic() + timeout
     for process in processes:
-        try:
+        with contextlib.suppress(subprocess.TimeoutExpired):
             process.wait(max(0.0, deadline - time.monotonic()))
-        except subprocess.TimeoutExpired:
-            pass
 
 
 def cpu_seconds(pid):
     """Return the CPU seconds process pid has used, every thread (Linux schedstat, in ns)."""
     total = 0
     for task in os.listdir(f'/proc/{pid}/task'):
-        try:
+        with contextlib.suppress(FileNotFoundError, ProcessLookupError):  # a thread just ended
             with open(f'/proc/{pid}/task/{task}/schedstat') as schedstat:
                 total += int(schedstat.read().split()[0])
-        except (FileNotFoundError, ProcessLookupError):
-            pass  # a thread that just ended
     return total * 1e-9
 
 

@@ -68,10 +68,9 @@ class GridMap:
         solid = data == OCCUPIED
         data.setflags(write=False)
         solid.setflags(write=False)
-        object.__setattr__(self, 'resolution', resolution)
-        object.__setattr__(self, 'origin', origin)
-        object.__setattr__(self, 'data', data)
-        object.__setattr__(self, 'solid', solid)
+        for name, value in (('resolution', resolution), ('origin', origin), ('data', data),
+                            ('solid', solid)):
+            object.__setattr__(self, name, value)
 
     @property
     def width(self):
@@ -187,8 +186,7 @@ def load_map(yaml_path):
 
 
 def _is_number(value):
-    return isinstance(value, (int, float)) and not isinstance(value, bool) \
-        and math.isfinite(value)
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
 
 
 def _number(doc, key, where, default=None):
