@@ -21,11 +21,14 @@ alike, a command from a node outside the graph.
 """
 
 import math
+import time
 
 from geometry_msgs.msg import Twist
 from nav_msgs.msg import Odometry
+import pytest
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from sim_diffdrive.lockstep.handshake import Answer
 from test_sim_graph import assert_pose
 from test_sim_graph import command
 from test_sim_graph import settle
@@ -105,3 +108,29 @@ def test_a_command_from_outside_the_graph_never_holds_it_nor_stands_for_a_member
         assert_pose(probe.odom, (0.25 * math.cos(0.1), 0.25 * math.sin(0.1), 0.1))
     finally:
         outsider.destroy_node()
+
+
+def test_a_callback_longer_than_the_timeout_is_no_stall_but_a_member_that_never_answers_is(
+        graph):
+    # The step's timeout is for a graph that waits on what never comes: time a callback runs
+    # (a motion drawing its plot_file as it ends, on a loaded machine) does not count.
+    graph.sim()
+    slow = sim_time_node(graph, 'slow')
+    cmd_vel = slow.create_publisher(Twist, 'cmd_vel', 10)
+    ran = []
+
+    def draw_then_stop():  # first due at 0.1 s: a stop the simulator has yet to handle
+        time.sleep(0.6)
+        ran.append(cmd_vel.publish(Twist()))
+    slow.create_timer(0.1, draw_then_stop)
+    graph.step_for(0.08)
+    graph.step(timeout=0.3)
+    assert len(ran) == 1 and graph.now_ns == NS // 10
+    assert graph.pending() == 0
+    # A member that never answers the step still stops it, after the timeout of waiting.
+    ghost = Answer('ghost#1', '/ghost', graph.now_ns)
+    graph.ledger.receive(ghost, graph.now_ns)
+    started = time.monotonic()
+    with pytest.raises(RuntimeError, match='graph did not settle'):
+        graph.step(timeout=0.3)
+    assert time.monotonic() - started < 5.0

@@ -187,7 +187,7 @@ class Lockstep:
         if not self._discovered:
             self.wait_for_discovery()
         now_ns = self.clock_owner.now_ns()
-        if not self.spin_until(lambda: not self.ledger.waiting_for(now_ns), timeout):
+        if not self._settle(lambda: not self.ledger.waiting_for(now_ns), timeout):
             raise RuntimeError(f'messages sent at t={now_ns / _NS:.3f} s were not handled')
         for _ in range(steps):
             self.ledger.next_step(now_ns)  # forgets what was heard beyond what was sent
@@ -196,8 +196,21 @@ class Lockstep:
             now_ns = self.clock_owner.now_ns()
             for answer in self._answers.values():
                 answer.step_ns = now_ns  # each node answers at once: settled() checks the rest
-            if not self.spin_until(lambda: self.settled(now_ns), timeout):
+            if not self._settle(lambda: self.settled(now_ns), timeout):
                 raise RuntimeError(f'graph did not settle at t={now_ns / _NS:.3f} s')
+
+    def _settle(self, predicate, timeout, poll=0.01):
+        """Spin until predicate() is true; False after timeout [s, wall] of waiting for it."""
+        deadline = time.monotonic() + timeout
+        while not predicate():
+            start = time.monotonic()
+            if start > deadline:
+                return False
+            self.executor.spin_once(timeout_sec=poll)
+            # A callback that ran past the poll (a motion drawing its plot_file as it ends)
+            # kept the graph busy, not waiting: the timeout is for what never comes.
+            deadline += max(0.0, time.monotonic() - start - poll)
+        return True
 
     def step_until(self, predicate, sim_timeout):
         """Step until predicate() holds; raise after sim_timeout simulated seconds."""
