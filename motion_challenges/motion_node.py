@@ -81,10 +81,11 @@ class MotionNode(Node):
         self.period = 1.0 / self.params.rate_hz
         self.cmd_pub = self.create_publisher(
             TwistStamped if self.params.stamped else Twist, 'cmd_vel', 10)
+        self.watch = RobotWatch(self, self.resolve_topic_name('odom'), self._use_odom,
+                                self._distrust)
         # As bytes: rclpy's Odometry object costs about 100 us a message, a motion needs five
         # numbers of it (OdomPose).
-        self._odom_topic = self.create_subscription(
-            Odometry, 'odom', self._on_odom, 50, raw=True).topic_name
+        self.create_subscription(Odometry, 'odom', self.watch.on_odom, 50, raw=True)
         self.odom = None
         self._progress_log = Throttle(1.0)  # a progress line a second
         self.run_odoms = []  # the OdomPose of each odometry while running or settling
@@ -101,7 +102,6 @@ class MotionNode(Node):
         self._wall_begun = None
         self._primed = False
         self._tick_timer = None
-        self.watch = RobotWatch(self, self._odom_topic, self._use_odom, self._distrust)
         # Waiting is timed on the wall clock: on sim time, node timers do not fire until the
         # simulator publishes /clock, and a missing simulator is exactly what to report.
         self._watchdog = self.create_timer(
@@ -199,12 +199,6 @@ class MotionNode(Node):
         """Log text, called each tick: a line a second at most."""
         if self._progress_log.allows():
             self.get_logger().info(text)
-
-    def _on_odom(self, msg):
-        self.watch.on_odom(msg)
-
-    def _take_early_odoms(self, now_ns):
-        self.watch.take_early_odoms(now_ns)
 
     def _use_odom(self, odom):
         if self.needs_odom and self.state == MotionState.RUNNING and self.odom is not None:
