@@ -78,14 +78,12 @@ class Answer:
         """Parse an answer; raise ValueError when the text is not one."""
         try:
             data = json.loads(text)
-            answer = cls(str(data['id']), str(data['node']), int(data['step_ns']),
-                         _counts(data.get('sent', {})), _counts(data.get('heard', {})),
-                         bool(data.get('leaving', False)),
-                         _counts(data.get('sent_stamp', {})),
-                         _counts(data.get('heard_stamp', {})))
+            return cls(str(data['id']), str(data['node']), int(data['step_ns']),
+                       _counts(data.get('sent', {})), _counts(data.get('heard', {})),
+                       bool(data.get('leaving', False)), _counts(data.get('sent_stamp', {})),
+                       _counts(data.get('heard_stamp', {})))
         except (TypeError, KeyError, AttributeError, json.JSONDecodeError) as error:
             raise ValueError(f'not a lockstep answer: {error}') from None
-        return answer
 
 
 def _counts(data):

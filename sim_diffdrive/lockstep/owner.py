@@ -238,12 +238,6 @@ class LockstepOwner:
         self._roster_pub.publish(String(data=roster.encode()))
         return resend
 
-    def _publishers_text(self, topic):
-        """Say which publishers of topic this simulator's discovery knows of."""
-        names = node_names(self.sim.get_publishers_info_by_topic(topic))
-        return (f'publishers of {topic} discovered here: {", ".join(names)}' if names
-                else f'no publisher of {topic} discovered here')
-
     def _gone(self, topic):
         """
         Return the nodes that sent on topic, if each has left and is gone from the graph.
@@ -294,8 +288,11 @@ class LockstepOwner:
             if unseen and not gone and held_s <= UNDISCOVERED_TIMEOUTS * timeout:
                 undiscovered.append(reason)
                 continue
+            names = node_names(self.sim.get_publishers_info_by_topic(topic))
             logger.warning(f'Lockstep: {ledger.describe(reason, now_ns)} within {held_s:.1f} s; '
-                           f'going on without those message(s) ({self._publishers_text(topic)}'
+                           'going on without those message(s) ('
+                           + (f'publishers of {topic} discovered here: {", ".join(names)}'
+                              if names else f'no publisher of {topic} discovered here')
                            + (f'; {", ".join(gone)} left and is gone' if gone else '') + ')')
             ledger.forgive(pid, topic)
         self._waiting = None
