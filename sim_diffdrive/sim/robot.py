@@ -75,8 +75,7 @@ class Robot:
         self._on_placed = on_placed
         self.index = index
         self.name = name
-        self._warned_publishers = False
-        self._warned_type = False
+        self._warned_publishers = self._warned_type = False
         # How many publishers' commands reach cmd_vel, as DDS last said (its matched event).
         self.cmd_publishers = 0
         self._refusals = Throttle(1.0)  # one warning a second per kind of refused command
@@ -128,8 +127,8 @@ class Robot:
             why = 'has a zero quaternion'
         else:
             why = None
-        yaw = yaw_from_quaternion(*values[2:]) if why is None else 0.0
         if why is None:
+            yaw = yaw_from_quaternion(*values[2:])
             self.world.step_to(self.clock.now_ns())
             try:
                 if given == frame:
@@ -318,10 +317,8 @@ class DrivenPath:
             pose = PoseStamped()
             pose.header.frame_id = frame_id
             pose.header.stamp = _stamp(stamp_ns)
-            pose.pose.position.x = x
-            pose.pose.position.y = y
-            pose.pose.orientation.z = qz
-            pose.pose.orientation.w = qw
+            pose.pose.position.x, pose.pose.position.y = x, y
+            pose.pose.orientation.z, pose.pose.orientation.w = qz, qw
             self._messages.append(pose)
         self._unconverted = 0
         return list(self._messages)
