@@ -104,9 +104,8 @@ class MotionNode(Node):
         self._tick_timer = None
         # Waiting is timed on the wall clock: on sim time, node timers do not fire until the
         # simulator publishes /clock, and a missing simulator is exactly what to report.
-        self._watchdog = self.create_timer(
-            WATCHDOG_PERIOD_S, self.watch.on_watchdog,
-            clock=Clock(clock_type=ClockType.STEADY_TIME))
+        self._watchdog = self.create_timer(WATCHDOG_PERIOD_S, self.watch.on_watchdog,
+                                           clock=Clock(clock_type=ClockType.STEADY_TIME))
         # A restarted simulator's clock starts again from zero, and its first odometry may
         # reach us only once its time has passed the last we had: watch the clock itself.
         self._time_jump = self.get_clock().create_jump_callback(
@@ -192,8 +191,7 @@ class MotionNode(Node):
 
     def predict(self, now_ns):
         """Return the robot's (metres, radians) since the latest odometry, and speeds now."""
-        return self.commands.predict(self.odom.stamp_ns, now_ns, self.odom.twist,
-                                     self.robot_accel)
+        return self.commands.predict(self.odom.stamp_ns, now_ns, self.odom.twist, self.robot_accel)
 
     def progress(self, text):
         """Log text, called each tick: a line a second at most."""

@@ -225,9 +225,8 @@ class RobotWatch:
         silent = self._silent_since(self._clock_moved_wall, wall)
         if silent > node.params.odom_timeout:
             node.finish(EXIT_FAILED, f'Simulated time stood still at {now_ns / _NS:.3f} s for '
-                                     f'{silent:.1f} s mid-motion with no word from the '
-                                     'simulator; stopped the robot (is the simulator still '
-                                     'running?)')
+                                     f'{silent:.1f} s mid-motion with no word from the simulator; '
+                                     'stopped the robot (is the simulator still running?)')
 
     def _silent_since(self, last_wall, wall):
         """Return how long the simulator has said nothing [s]: since last_wall or its roster."""

@@ -190,9 +190,8 @@ class LockstepOwner:
         if self.ledger.receive(answer, now_ns, time.monotonic()) == 'left':
             member = self.ledger.members[answer.participant]
             steps = (now_ns - member.joined_ns) // self.sim.step_ns
-            self.sim.get_logger().info(
-                f'Lockstep: {answer.node} left at {now_ns / _NS:.3f} s ({member.answers} '
-                f'answers in {steps} steps)')
+            self.sim.get_logger().info(f'Lockstep: {answer.node} left at {now_ns / _NS:.3f} s '
+                                       f'({member.answers} answers in {steps} steps)')
         return self._news()
 
     def heard_message(self):

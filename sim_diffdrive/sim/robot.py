@@ -165,9 +165,9 @@ class Robot:
             if self._refusals.allows('stamp'):
                 when = 'old' if age_ns > 0 else 'in the future'
                 self.logger.warning(
-                    f'{self.label}Refusing cmd_vel stamped {abs(age_ns) / _NS:.3f} s {when} '
-                    f'(more than max_command_age {self.params.max_command_age:g} s); keeping '
-                    'the last command')
+                    f'{self.label}Refusing cmd_vel stamped {abs(age_ns) / _NS:.3f} s {when} (more '
+                    f'than max_command_age {self.params.max_command_age:g} s); keeping the last '
+                    'command')
             return
         self.command(linear, angular, stamp_ns)
 
@@ -214,8 +214,7 @@ class Robot:
         ours = f'geometry_msgs/msg/{self.cmd_type.__name__}'
         others = [name for name in types if name != ours]
         if others:  # the types of its subscribers show there too: which publish?
-            others = sorted({info.topic_type for info in publishers_of(self.cmd_topic)}
-                            - {ours})
+            others = sorted({info.topic_type for info in publishers_of(self.cmd_topic)} - {ours})
         if others and not self._warned_type:
             self._warned_type = True
             stamped = {'geometry_msgs/msg/Twist': 'false',
@@ -233,9 +232,8 @@ class Robot:
         count = self.cmd_publishers = info.current_count
         if count > 1 and not self._warned_publishers:
             self._warned_publishers = True
-            self.logger.warning(
-                f'{count} nodes publish on {self.cmd_topic}: their commands interleave and the '
-                'latest one wins')
+            self.logger.warning(f'{count} nodes publish on {self.cmd_topic}: their commands '
+                                'interleave and the latest one wins')
         elif count <= 1:
             self._warned_publishers = False
 

@@ -85,9 +85,8 @@ def open_surroundings(node, names):
     except MapError as error:
         raise ParameterError(f"parameter 'map_file': {error}") from None
     if p.scan_range_min >= p.scan_range_max:
-        raise ParameterError(
-            f"parameter 'scan_range_min' ({p.scan_range_min:g}) must be below "
-            f"'scan_range_max' ({p.scan_range_max:g})")
+        raise ParameterError(f"parameter 'scan_range_min' ({p.scan_range_min:g}) must be below "
+                             f"'scan_range_max' ({p.scan_range_max:g})")
     return Surroundings(node, names, grid)
 
 
@@ -105,8 +104,7 @@ class Surroundings:
         prefixes = [f'{name}/' if name else '' for name in names]
         self.scan_pubs = [node.create_publisher(LaserScan, prefix + 'scan', SCAN_QOS)
                           for prefix in prefixes]
-        self._scan_every = (max(1, round(p.rate_hz / p.scan_rate_hz)) if p.scan_rate_hz > 0
-                            else 0)
+        self._scan_every = max(1, round(p.rate_hz / p.scan_rate_hz)) if p.scan_rate_hz > 0 else 0
         # Every LaserScan's fields but its header and ranges (scan_time: between two scans [s]).
         scanner = self.scanner
         self._scan_fields = {
