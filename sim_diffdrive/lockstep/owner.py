@@ -85,11 +85,7 @@ class LockstepOwner:
         self._stalled_s = 0.0  # how long the simulator itself did not run during this step
 
     def start(self):
-        """
-        Count the simulator's own traffic from here on (once its robots exist); go.
-
-        Return its MessageCounter, whose listeners the clock adds itself to.
-        """
+        """Count the simulator's own traffic (its robots exist now); return its MessageCounter."""
         sim = self.sim
         self._roster_pub = sim.create_publisher(String, roster_topic(self._clock_topic),
                                                 ROSTER_QOS)
@@ -270,9 +266,8 @@ class LockstepOwner:
         wall = time.monotonic()
         for pid in ledger.silent(wall, timeout):
             answer = ledger.members[pid].answer
-            logger.warning(
-                f'Lockstep: nothing heard from {answer.node} for {timeout:g} s (its last answer: '
-                f'{answer.step_ns / _NS:.3f} s); going on without it')
+            logger.warning(f'Lockstep: nothing heard from {answer.node} for {timeout:g} s (its '
+                           f'last answer: {answer.step_ns / _NS:.3f} s); going on without it')
             ledger.drop(pid, now_ns)
         held, undiscovered = [], []
         for reason in waiting:

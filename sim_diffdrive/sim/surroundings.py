@@ -101,16 +101,13 @@ class Surroundings:
         self.scanner = Scanner(grid, beams=p.scan_beams, range_min=p.scan_range_min,
                                range_max=p.scan_range_max, noise_std=p.scan_noise_std,
                                seed=p.seed, radius=p.robot_radius)
-        prefixes = [f'{name}/' if name else '' for name in names]
-        self.scan_pubs = [node.create_publisher(LaserScan, prefix + 'scan', SCAN_QOS)
-                          for prefix in prefixes]
+        self.scan_pubs = [node.create_publisher(LaserScan, f'{name}/scan' if name else 'scan',
+                                                SCAN_QOS) for name in names]
         self._scan_every = max(1, round(p.rate_hz / p.scan_rate_hz)) if p.scan_rate_hz > 0 else 0
         # Every LaserScan's fields but its header and ranges (scan_time: between two scans [s]).
-        scanner = self.scanner
-        self._scan_fields = {
-            'angle_min': scanner.angle_min, 'angle_max': scanner.angle_max,
-            'angle_increment': scanner.angle_increment, 'scan_time': self._scan_every / p.rate_hz,
-            'range_min': scanner.range_min, 'range_max': scanner.range_max}
+        self._scan_fields = {name: getattr(self.scanner, name) for name in (
+            'angle_min', 'angle_max', 'angle_increment', 'range_min', 'range_max')}
+        self._scan_fields['scan_time'] = self._scan_every / p.rate_hz
         self._steps = 0
         scan_frame = resolve_frame(node.get_namespace(), p.scan_frame_id, 'base_scan')
         self._scan_frames = [namespaced_frame(name, scan_frame) for name in names]
