@@ -83,8 +83,7 @@ class RobotWatch:
         self._distrust = distrust
         self._waiting_log = Throttle(2.0)
         self._odom_wall = None  # when odometry last came [s, monotonic]
-        self._wall_start = None
-        self._ready = False
+        self._wall_start = None  # set by start()
         self._clock_seen_ns = None  # on sim time, the clock as the watchdog last saw it
         self._clock_moved_wall = None  # and when it last saw it move
         self._watched_wall = time.monotonic()  # when on_watchdog last ran
@@ -93,7 +92,6 @@ class RobotWatch:
     def start(self):
         """Start waiting: start_timeout counts from here, not while a user answers questions."""
         self._wall_start = time.monotonic()
-        self._ready = True
 
     def stop(self):
         """Stop watching (the run has finished): the queued odometry is dropped."""
@@ -194,7 +192,7 @@ class RobotWatch:
         node = self._node
         if node.needs_odom and node.state == MotionState.RUNNING:
             self._watch_odometry()
-        elif self._ready and node.state == MotionState.WAITING:
+        elif self._wall_start is not None and node.state == MotionState.WAITING:
             self._watch_start()
         if node.sim_time and node.state in (MotionState.RUNNING, MotionState.SETTLING):
             self._watch_clock()
