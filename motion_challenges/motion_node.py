@@ -151,9 +151,8 @@ class MotionNode(Node):
         """Leave the robot stopped, whatever ended the run."""
         if self.context.ok():
             self.stop_robot()
-            said_goodbye = True
-            if self.lockstep is not None:
-                said_goodbye = self.lockstep.leave(ack_timeout=self.stop_ack_timeout)
+            said_goodbye = (self.lockstep is None
+                            or self.lockstep.leave(ack_timeout=self.stop_ack_timeout))
             # Fast DDS sends within publish(); its acknowledgement waits for a heartbeat that
             # can be seconds away, so only a short wait covers a resend on a lossy link.
             if self.stop_ack_timeout > 0.0:
