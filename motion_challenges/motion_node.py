@@ -81,10 +81,11 @@ class MotionNode(Node):
         self.period = 1.0 / self.params.rate_hz
         self.cmd_pub = self.create_publisher(
             TwistStamped if self.params.stamped else Twist, 'cmd_vel', 10)
+        self.watch = RobotWatch(self, self.resolve_topic_name('odom'), self._use_odom,
+                                self._distrust)
         # As bytes: rclpy's Odometry object costs about 100 us a message, a motion needs five
         # numbers of it (OdomPose).
-        self._odom_topic = self.create_subscription(
-            Odometry, 'odom', self._on_odom, 50, raw=True).topic_name
+        self.create_subscription(Odometry, 'odom', self.watch.on_odom, 50, raw=True)
         self.odom = None
         self._progress_log = Throttle(1.0)  # a progress line a second
         self.run_odoms = []  # the OdomPose of each odometry while running or settling
@@ -101,12 +102,10 @@ class MotionNode(Node):
         self._wall_begun = None
         self._primed = False
         self._tick_timer = None
-        self.watch = RobotWatch(self, self._odom_topic, self._use_odom, self._distrust)
         # Waiting is timed on the wall clock: on sim time, node timers do not fire until the
         # simulator publishes /clock, and a missing simulator is exactly what to report.
-        self._watchdog = self.create_timer(
-            WATCHDOG_PERIOD_S, self.watch.on_watchdog,
-            clock=Clock(clock_type=ClockType.STEADY_TIME))
+        self._watchdog = self.create_timer(WATCHDOG_PERIOD_S, self.watch.on_watchdog,
+                                           clock=Clock(clock_type=ClockType.STEADY_TIME))
         # A restarted simulator's clock starts again from zero, and its first odometry may
         # reach us only once its time has passed the last we had: watch the clock itself.
         self._time_jump = self.get_clock().create_jump_callback(
@@ -152,9 +151,8 @@ class MotionNode(Node):
         """Leave the robot stopped, whatever ended the run."""
         if self.context.ok():
             self.stop_robot()
-            said_goodbye = True
-            if self.lockstep is not None:
-                said_goodbye = self.lockstep.leave(ack_timeout=self.stop_ack_timeout)
+            said_goodbye = (self.lockstep is None
+                            or self.lockstep.leave(ack_timeout=self.stop_ack_timeout))
             # Fast DDS sends within publish(); its acknowledgement waits for a heartbeat that
             # can be seconds away, so only a short wait covers a resend on a lossy link.
             if self.stop_ack_timeout > 0.0:
@@ -192,19 +190,12 @@ class MotionNode(Node):
 
     def predict(self, now_ns):
         """Return the robot's (metres, radians) since the latest odometry, and speeds now."""
-        return self.commands.predict(self.odom.stamp_ns, now_ns, self.odom.twist,
-                                     self.robot_accel)
+        return self.commands.predict(self.odom.stamp_ns, now_ns, self.odom.twist, self.robot_accel)
 
     def progress(self, text):
         """Log text, called each tick: a line a second at most."""
         if self._progress_log.allows():
             self.get_logger().info(text)
-
-    def _on_odom(self, msg):
-        self.watch.on_odom(msg)
-
-    def _take_early_odoms(self, now_ns):
-        self.watch.take_early_odoms(now_ns)
 
     def _use_odom(self, odom):
         if self.needs_odom and self.state == MotionState.RUNNING and self.odom is not None:

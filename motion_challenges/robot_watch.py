@@ -19,18 +19,24 @@ Waiting: the robot (the node that publishes the odometry and subscribes cmd_vel,
 ``wait_for_odom`` false any cmd_vel subscriber), the simulator's lockstep, odometry and, on
 sim time, the clock, until ``start_timeout``.  Watching, mid-motion: odometry that stops or
 comes from two publishers, simulated time that stands still or goes back, a simulator that
-went on without the motion.  What the watch finds ends the run through the node.
+went on without the motion.  What the watch finds ends the run through the node.  Odometry
+is read from its bytes into the few numbers a motion needs (OdomPose).
 """
 
 import enum
 import time
 
-from motion_challenges.odometry import OdomPose
+from motion_challenges.controllers import NS as _NS
+from motion_challenges.controllers import Pose
+from nav_msgs.msg import Odometry
+from rclpy.serialization import deserialize_message
+from sim_diffdrive.angles import yaw_from_quaternion
+from sim_diffdrive.cdr import read_odometry
+from sim_diffdrive.cdr import UnsupportedEncoding
 from sim_diffdrive.node_names import node_names
 from sim_diffdrive.runtime import EXIT_FAILED
 from sim_diffdrive.throttle import Throttle
 
-_NS = 1_000_000_000
 # Odometry stamped this far from a wall-time node's clock, with /clock published, is on
 # simulated time [s]: further than any clock skew between two hosts.
 _CLOCKS_APART_S = 60.0
@@ -45,6 +51,21 @@ class MotionState(str, enum.Enum):
     RUNNING = 'running'  # control() is called every tick
     SETTLING = 'settling'  # stopped; waiting for odometry that shows where the robot came to rest
     FINISHED = 'finished'  # done or given up: see exit_code
+
+
+class OdomPose(Pose):
+    """The Pose an Odometry message reports (position, yaw, stamp), read from its bytes."""
+
+    def __init__(self, data):
+        try:
+            stamp_ns, _, _, (x, y, _), orientation, twist = read_odometry(data)
+        except UnsupportedEncoding:  # not plain CDR: let rclpy read it
+            msg = deserialize_message(data, Odometry)
+            p, q, t = msg.pose.pose.position, msg.pose.pose.orientation, msg.twist.twist
+            stamp_ns = msg.header.stamp.sec * _NS + msg.header.stamp.nanosec
+            x, y, orientation, twist = p.x, p.y, (q.x, q.y, q.z, q.w), (t.linear.x, t.angular.z)
+        super().__init__(x, y, yaw_from_quaternion(*orientation), stamp_ns)
+        self.twist = twist  # (linear.x, angular.z)
 
 
 class RobotWatch:
@@ -62,8 +83,7 @@ class RobotWatch:
         self._distrust = distrust
         self._waiting_log = Throttle(2.0)
         self._odom_wall = None  # when odometry last came [s, monotonic]
-        self._wall_start = None
-        self._ready = False
+        self._wall_start = None  # set by start()
         self._clock_seen_ns = None  # on sim time, the clock as the watchdog last saw it
         self._clock_moved_wall = None  # and when it last saw it move
         self._watched_wall = time.monotonic()  # when on_watchdog last ran
@@ -72,7 +92,6 @@ class RobotWatch:
     def start(self):
         """Start waiting: start_timeout counts from here, not while a user answers questions."""
         self._wall_start = time.monotonic()
-        self._ready = True
 
     def stop(self):
         """Stop watching (the run has finished): the queued odometry is dropped."""
@@ -173,7 +192,7 @@ class RobotWatch:
         node = self._node
         if node.needs_odom and node.state == MotionState.RUNNING:
             self._watch_odometry()
-        elif self._ready and node.state == MotionState.WAITING:
+        elif self._wall_start is not None and node.state == MotionState.WAITING:
             self._watch_start()
         if node.sim_time and node.state in (MotionState.RUNNING, MotionState.SETTLING):
             self._watch_clock()
@@ -204,9 +223,8 @@ class RobotWatch:
         silent = self._silent_since(self._clock_moved_wall, wall)
         if silent > node.params.odom_timeout:
             node.finish(EXIT_FAILED, f'Simulated time stood still at {now_ns / _NS:.3f} s for '
-                                     f'{silent:.1f} s mid-motion with no word from the '
-                                     'simulator; stopped the robot (is the simulator still '
-                                     'running?)')
+                                     f'{silent:.1f} s mid-motion with no word from the simulator; '
+                                     'stopped the robot (is the simulator still running?)')
 
     def _silent_since(self, last_wall, wall):
         """Return how long the simulator has said nothing [s]: since last_wall or its roster."""

@@ -151,8 +151,7 @@ def read_odometry(data):
 def covariance(diagonal):
     """Return the flat, row-major 6x6 matrix with the given diagonal and zeros elsewhere."""
     values = [0.0] * 36
-    for i, value in enumerate(diagonal):
-        values[7 * i] = float(value)
+    values[::7] = map(float, diagonal)
     return values
 
 

@@ -141,11 +141,11 @@ def test_odometry_is_used_in_stamp_order_after_the_clock_jumps_ahead(graph):
         msg.header.stamp = Time(seconds=stamp_s).to_msg()
         return serialize_message(msg)
     clock.set_ros_time_override(Time(seconds=1.0, clock_type=clock.clock_type))
-    node._on_odom(odometry(1.0))
+    node.watch.on_odom(odometry(1.0))
     assert node.odom is None  # waits for the tick after it
     clock.set_ros_time_override(Time(seconds=2.0, clock_type=clock.clock_type))
-    node._on_odom(odometry(1.5))
-    node._take_early_odoms(node.now_ns())  # what the next tick does first
+    node.watch.on_odom(odometry(1.5))
+    node.watch.take_early_odoms(node.now_ns())  # what the next tick does first
     assert not node.done, node.exit_code
     assert node.odom.stamp_ns == 1_500_000_000
 

@@ -32,7 +32,7 @@ import time
 
 from geometry_msgs.msg import Twist
 from geometry_msgs.msg import TwistStamped
-from motion_challenges.odometry import OdomPose
+from motion_challenges.robot_watch import OdomPose
 from nav_msgs.msg import Odometry
 import numpy as np
 import pytest

@@ -78,14 +78,12 @@ class Answer:
         """Parse an answer; raise ValueError when the text is not one."""
         try:
             data = json.loads(text)
-            answer = cls(str(data['id']), str(data['node']), int(data['step_ns']),
-                         _counts(data.get('sent', {})), _counts(data.get('heard', {})),
-                         bool(data.get('leaving', False)),
-                         _counts(data.get('sent_stamp', {})),
-                         _counts(data.get('heard_stamp', {})))
+            return cls(str(data['id']), str(data['node']), int(data['step_ns']),
+                       _counts(data.get('sent', {})), _counts(data.get('heard', {})),
+                       bool(data.get('leaving', False)), _counts(data.get('sent_stamp', {})),
+                       _counts(data.get('heard_stamp', {})))
         except (TypeError, KeyError, AttributeError, json.JSONDecodeError) as error:
             raise ValueError(f'not a lockstep answer: {error}') from None
-        return answer
 
 
 def _counts(data):
@@ -125,11 +123,9 @@ class Roster:
         """Parse a roster; raise ValueError when the text is not one."""
         try:
             data = json.loads(text)
-            return cls(str(data['owner']), int(data['step_ns']),
-                       {str(m) for m in data['members']},
+            return cls(str(data['owner']), int(data['step_ns']), {str(m) for m in data['members']},
                        {str(t) for t in data.get('heard_topics', ())},
-                       [str(w) for w in data.get('waiting', ())],
-                       _counts(data.get('dropped', {})))
+                       [str(w) for w in data.get('waiting', ())], _counts(data.get('dropped', {})))
         except (TypeError, KeyError, ValueError, AttributeError) as error:
             raise ValueError(f'not a lockstep roster: {error}') from None
 
@@ -223,9 +219,8 @@ class StepLedger:
 
     def silent(self, wall_s, timeout_s):
         """Return the participants nothing was heard from for longer than timeout_s (wall)."""
-        return [pid for pid, member in self.members.items()
-                if pid != self.owner and not member.leaving
-                and wall_s - member.heard_wall > timeout_s]
+        return [pid for pid, member in self.members.items() if pid != self.owner
+                and not member.leaving and wall_s - member.heard_wall > timeout_s]
 
     def roster(self, owner, now_ns, waiting=()):
         """Return the roster to publish: the counted members and the topics they handle."""

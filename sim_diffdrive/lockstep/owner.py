@@ -85,11 +85,7 @@ class LockstepOwner:
         self._stalled_s = 0.0  # how long the simulator itself did not run during this step
 
     def start(self):
-        """
-        Count the simulator's own traffic from here on (once its robots exist); go.
-
-        Return its MessageCounter, whose listeners the clock adds itself to.
-        """
+        """Count the simulator's own traffic (its robots exist now); return its MessageCounter."""
         sim = self.sim
         self._roster_pub = sim.create_publisher(String, roster_topic(self._clock_topic),
                                                 ROSTER_QOS)
@@ -190,9 +186,8 @@ class LockstepOwner:
         if self.ledger.receive(answer, now_ns, time.monotonic()) == 'left':
             member = self.ledger.members[answer.participant]
             steps = (now_ns - member.joined_ns) // self.sim.step_ns
-            self.sim.get_logger().info(
-                f'Lockstep: {answer.node} left at {now_ns / _NS:.3f} s ({member.answers} '
-                f'answers in {steps} steps)')
+            self.sim.get_logger().info(f'Lockstep: {answer.node} left at {now_ns / _NS:.3f} s '
+                                       f'({member.answers} answers in {steps} steps)')
         return self._news()
 
     def heard_message(self):
@@ -238,12 +233,6 @@ class LockstepOwner:
         self._roster_pub.publish(String(data=roster.encode()))
         return resend
 
-    def _publishers_text(self, topic):
-        """Say which publishers of topic this simulator's discovery knows of."""
-        names = node_names(self.sim.get_publishers_info_by_topic(topic))
-        return (f'publishers of {topic} discovered here: {", ".join(names)}' if names
-                else f'no publisher of {topic} discovered here')
-
     def _gone(self, topic):
         """
         Return the nodes that sent on topic, if each has left and is gone from the graph.
@@ -277,9 +266,8 @@ class LockstepOwner:
         wall = time.monotonic()
         for pid in ledger.silent(wall, timeout):
             answer = ledger.members[pid].answer
-            logger.warning(
-                f'Lockstep: nothing heard from {answer.node} for {timeout:g} s (its last answer: '
-                f'{answer.step_ns / _NS:.3f} s); going on without it')
+            logger.warning(f'Lockstep: nothing heard from {answer.node} for {timeout:g} s (its '
+                           f'last answer: {answer.step_ns / _NS:.3f} s); going on without it')
             ledger.drop(pid, now_ns)
         held, undiscovered = [], []
         for reason in waiting:
@@ -294,8 +282,11 @@ class LockstepOwner:
             if unseen and not gone and held_s <= UNDISCOVERED_TIMEOUTS * timeout:
                 undiscovered.append(reason)
                 continue
+            names = node_names(self.sim.get_publishers_info_by_topic(topic))
             logger.warning(f'Lockstep: {ledger.describe(reason, now_ns)} within {held_s:.1f} s; '
-                           f'going on without those message(s) ({self._publishers_text(topic)}'
+                           'going on without those message(s) ('
+                           + (f'publishers of {topic} discovered here: {", ".join(names)}'
+                              if names else f'no publisher of {topic} discovered here')
                            + (f'; {", ".join(gone)} left and is gone' if gone else '') + ')')
             ledger.forgive(pid, topic)
         self._waiting = None

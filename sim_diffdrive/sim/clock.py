@@ -297,13 +297,9 @@ class LockstepClock(_TimedClock):
         super().set_real_time_factor(value)
         self.owner.rescheduled()  # the time since the last look is no stall
 
-    def _on_timer(self):
-        self._look()
-
     def _look(self):
         """Take the steps the owner allows now; re-send /clock when it says so."""
-        wall = self.wall
-        owner = self.owner
+        wall, owner = self.wall, self.owner
         steps, resend = owner.may_step(time.monotonic(), wall, self.budget_s, self.period_s())
         if resend:
             self.repeat()
@@ -320,21 +316,16 @@ class LockstepClock(_TimedClock):
         for _ in range(steps):
             self.step()
         if steps:
-            self._keep_schedule(wall, steps)
+            # The steps are dated on the schedule, not when they ended: the timer fires once per
+            # step budget, and were the last step dated when it ended, the next tick would find a
+            # little less than a budget waited and skip, halving the rate.  Far behind (the
+            # clock was held, or the machine is slower than real_time_factor), the schedule
+            # starts again from now rather than catching up in a burst.
+            scheduled = wall + steps * self.budget_s
+            now = time.monotonic()
+            self.wall = scheduled if now - scheduled < self.budget_s else now
 
-    def _keep_schedule(self, wall, steps):
-        """
-        Date the steps just taken on the wall schedule, not at the moment they ended.
-
-        The timer fires once per step budget; were the last step dated when it ended, the next
-        tick would find a little less than a budget waited and skip, halving the rate.  Far
-        behind (the clock was held, or the machine is slower than real_time_factor), the
-        schedule starts again from now rather than catching up in a burst.
-        """
-        budget = self.budget_s
-        scheduled = wall + steps * budget
-        now = time.monotonic()
-        self.wall = scheduled if now - scheduled < budget else now
+    _on_timer = _look
 
     def step(self):
         self.owner.next_step(self.sim_ns + self.sim.step_ns)

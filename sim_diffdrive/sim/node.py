@@ -64,28 +64,21 @@ PARAMETERS = (
          'Frame of the odometry pose and the path (REP 105).', live=True),
     Spec('base_frame_id', DEFAULT_FRAMES['base_frame_id'],
          'Child frame of the odometry (REP 105).', live=True),
-    Spec('publish_tf', True,
-         'Publish odom_frame_id -> base_frame_id on /tf with each odometry.'),
+    Spec('publish_tf', True, 'Publish odom_frame_id -> base_frame_id on /tf with each odometry.'),
     Spec('initial_x', 0.0, 'Start position x in the odom frame [m]; a change takes effect at '
          'the next ~/reset.', low=-_POSITION_LIMIT, high=_POSITION_LIMIT, live=True),
     Spec('initial_y', 0.0, 'Start position y in the odom frame [m]; a change takes effect at '
          'the next ~/reset.', low=-_POSITION_LIMIT, high=_POSITION_LIMIT, live=True),
     Spec('initial_yaw', 0.0, 'Start heading in the odom frame [rad], counter-clockwise from x; '
          'a change takes effect at the next ~/reset.', low=-100.0, high=100.0, live=True),
-    Spec('max_linear_speed', 0.0, 'Largest |linear.x| applied [m/s]; 0 = unlimited.',
-         low=0.0, high=1000.0, live=True),
-    Spec('max_angular_speed', 0.0, 'Largest |angular.z| applied [rad/s]; 0 = unlimited.',
-         low=0.0, high=1000.0, live=True),
-    Spec('max_linear_accel', 0.0, 'Largest linear acceleration [m/s^2]; 0 = unlimited.',
-         low=0.0, high=1000.0, live=True),
-    Spec('max_angular_accel', 0.0, 'Largest angular acceleration [rad/s^2]; 0 = unlimited.',
-         low=0.0, high=1000.0, live=True),
-    Spec('pose_covariance_diagonal', [0.001, 0.001, 0.001, 0.001, 0.001, 0.01],
-         'Diagonal of the odometry pose covariance (x, y, z, roll, pitch, yaw).',
-         low=0.0, high=1e9, length=6, live=True),
-    Spec('twist_covariance_diagonal', [0.001, 0.001, 0.001, 0.001, 0.001, 0.01],
-         'Diagonal of the odometry twist covariance (x, y, z, roll, pitch, yaw).',
-         low=0.0, high=1e9, length=6, live=True),
+    *(Spec(name, 0.0, f'Largest {what}; 0 = unlimited.', low=0.0, high=1000.0, live=True)
+      for name, what in (('max_linear_speed', '|linear.x| applied [m/s]'),
+                         ('max_angular_speed', '|angular.z| applied [rad/s]'),
+                         ('max_linear_accel', 'linear acceleration [m/s^2]'),
+                         ('max_angular_accel', 'angular acceleration [rad/s^2]'))),
+    *(Spec(f'{part}_covariance_diagonal', [0.001, 0.001, 0.001, 0.001, 0.001, 0.01],
+           f'Diagonal of the odometry {part} covariance (x, y, z, roll, pitch, yaw).',
+           low=0.0, high=1e9, length=6, live=True) for part in ('pose', 'twist')),
     Spec('publish_clock', False,
          'Own time: publish /clock so nodes with use_sim_time run on simulated time.'),
     Spec('real_time_factor', 1.0,
@@ -145,9 +138,8 @@ class UnicycleSim(Node):
         self.params = declare(self, PARAMETERS, on_change=self._on_parameter)
         p = self.params
         if p.publish_clock and self.get_parameter('use_sim_time').value:
-            raise ParameterError(
-                "parameter 'publish_clock' is true, so this node owns time: "
-                "'use_sim_time' must be false for it")
+            raise ParameterError("parameter 'publish_clock' is true, so this node owns time: "
+                                 "'use_sim_time' must be false for it")
         names = robot_names(p.robots)
         # Of two frames that are one, name the one changed from its default (odom's if both).
         blame = ('odom_frame_id' if p.odom_frame_id != DEFAULT_FRAMES['odom_frame_id']
@@ -159,11 +151,10 @@ class UnicycleSim(Node):
                 f'robot(s), {3 * len(names)} values; got {len(p.initial_poses)}')
         self.surroundings = open_surroundings(self, names)
         try:
-            self.world = World(
-                self._initial_poses(len(names)), names=names,
-                timeout_ns=round(p.cmd_vel_timeout * _NS),
-                limits={name: getattr(p, name) for name in LIMITS},
-                walls=self.surroundings.walls if self.surroundings else None)
+            self.world = World(self._initial_poses(len(names)), names=names,
+                               timeout_ns=round(p.cmd_vel_timeout * _NS),
+                               limits={name: getattr(p, name) for name in LIMITS},
+                               walls=self.surroundings.walls if self.surroundings else None)
         except PlacementError as error:
             raise ParameterError(f'Cannot start: {error} (initial_x, initial_y, initial_poses '
                                  'or map_file)') from None
@@ -277,12 +268,11 @@ class UnicycleSim(Node):
         frames = self._frame_values()
         changed = [p.name for p in parameters
                    if p.name in frames and isinstance(p.value, str)]  # else the Spec refuses
-        if not changed:
-            return SetParametersResult(successful=True)
         frames.update((p.name, p.value) for p in parameters if p.name in changed)
         try:
-            check_frames(self.get_namespace(), [robot.name for robot in self.robots], frames,
-                         changed[-1])
+            if changed:
+                check_frames(self.get_namespace(), [robot.name for robot in self.robots],
+                             frames, changed[-1])
         except ParameterError as error:
             return SetParametersResult(successful=False, reason=str(error))
         return SetParametersResult(successful=True)

@@ -68,10 +68,9 @@ def check_frames(namespace, robots, frames, blame):
         odom, base = (published_frame(namespace, robot, parameter, frames[parameter])
                       for parameter in DEFAULT_FRAMES)
         if odom == base:
-            raise ParameterError(
-                f"parameter '{blame}' gives the same frame as '{other}', {odom!r}: odometry "
-                f'and /tf would carry a transform from {odom} to itself, which tf2 rejects; '
-                f'got {frames[blame]!r}')
+            raise ParameterError(f"parameter '{blame}' gives the same frame as '{other}', "
+                                 f'{odom!r}: odometry and /tf would carry a transform from '
+                                 f'{odom} to itself, which tf2 rejects; got {frames[blame]!r}')
 
 
 def _unusable(frame):

@@ -75,8 +75,7 @@ class Robot:
         self._on_placed = on_placed
         self.index = index
         self.name = name
-        self._warned_publishers = False
-        self._warned_type = False
+        self._warned_publishers = self._warned_type = False
         # How many publishers' commands reach cmd_vel, as DDS last said (its matched event).
         self.cmd_publishers = 0
         self._refusals = Throttle(1.0)  # one warning a second per kind of refused command
@@ -128,8 +127,8 @@ class Robot:
             why = 'has a zero quaternion'
         else:
             why = None
-        yaw = yaw_from_quaternion(*values[2:]) if why is None else 0.0
         if why is None:
+            yaw = yaw_from_quaternion(*values[2:])
             self.world.step_to(self.clock.now_ns())
             try:
                 if given == frame:
@@ -166,9 +165,9 @@ class Robot:
             if self._refusals.allows('stamp'):
                 when = 'old' if age_ns > 0 else 'in the future'
                 self.logger.warning(
-                    f'{self.label}Refusing cmd_vel stamped {abs(age_ns) / _NS:.3f} s {when} '
-                    f'(more than max_command_age {self.params.max_command_age:g} s); keeping '
-                    'the last command')
+                    f'{self.label}Refusing cmd_vel stamped {abs(age_ns) / _NS:.3f} s {when} (more '
+                    f'than max_command_age {self.params.max_command_age:g} s); keeping the last '
+                    'command')
             return
         self.command(linear, angular, stamp_ns)
 
@@ -215,8 +214,7 @@ class Robot:
         ours = f'geometry_msgs/msg/{self.cmd_type.__name__}'
         others = [name for name in types if name != ours]
         if others:  # the types of its subscribers show there too: which publish?
-            others = sorted({info.topic_type for info in publishers_of(self.cmd_topic)}
-                            - {ours})
+            others = sorted({info.topic_type for info in publishers_of(self.cmd_topic)} - {ours})
         if others and not self._warned_type:
             self._warned_type = True
             stamped = {'geometry_msgs/msg/Twist': 'false',
@@ -234,9 +232,8 @@ class Robot:
         count = self.cmd_publishers = info.current_count
         if count > 1 and not self._warned_publishers:
             self._warned_publishers = True
-            self.logger.warning(
-                f'{count} nodes publish on {self.cmd_topic}: their commands interleave and the '
-                'latest one wins')
+            self.logger.warning(f'{count} nodes publish on {self.cmd_topic}: their commands '
+                                'interleave and the latest one wins')
         elif count <= 1:
             self._warned_publishers = False
 
@@ -318,10 +315,8 @@ class DrivenPath:
             pose = PoseStamped()
             pose.header.frame_id = frame_id
             pose.header.stamp = _stamp(stamp_ns)
-            pose.pose.position.x = x
-            pose.pose.position.y = y
-            pose.pose.orientation.z = qz
-            pose.pose.orientation.w = qw
+            pose.pose.position.x, pose.pose.position.y = x, y
+            pose.pose.orientation.z, pose.pose.orientation.w = qz, qw
             self._messages.append(pose)
         self._unconverted = 0
         return list(self._messages)

@@ -41,6 +41,7 @@ from sim_diffdrive.world.contact import Walls
 from sim_diffdrive.world.grid import load_map
 from sim_diffdrive.world.grid import MapError
 from sim_diffdrive.world.scan import Scanner
+from std_msgs.msg import Header
 from tf2_msgs.msg import TFMessage
 
 _NS = 1_000_000_000
@@ -84,9 +85,8 @@ def open_surroundings(node, names):
     except MapError as error:
         raise ParameterError(f"parameter 'map_file': {error}") from None
     if p.scan_range_min >= p.scan_range_max:
-        raise ParameterError(
-            f"parameter 'scan_range_min' ({p.scan_range_min:g}) must be below "
-            f"'scan_range_max' ({p.scan_range_max:g})")
+        raise ParameterError(f"parameter 'scan_range_min' ({p.scan_range_min:g}) must be below "
+                             f"'scan_range_max' ({p.scan_range_max:g})")
     return Surroundings(node, names, grid)
 
 
@@ -101,13 +101,13 @@ class Surroundings:
         self.scanner = Scanner(grid, beams=p.scan_beams, range_min=p.scan_range_min,
                                range_max=p.scan_range_max, noise_std=p.scan_noise_std,
                                seed=p.seed, radius=p.robot_radius)
-        prefixes = [f'{name}/' if name else '' for name in names]
-        self.scan_pubs = [node.create_publisher(LaserScan, prefix + 'scan', SCAN_QOS)
-                          for prefix in prefixes]
-        self._scan_every = (max(1, round(p.rate_hz / p.scan_rate_hz)) if p.scan_rate_hz > 0
-                            else 0)
-        # The time between two scans [s], for LaserScan.scan_time.
-        self._scan_time = self._scan_every / p.rate_hz
+        self.scan_pubs = [node.create_publisher(LaserScan, f'{name}/scan' if name else 'scan',
+                                                SCAN_QOS) for name in names]
+        self._scan_every = max(1, round(p.rate_hz / p.scan_rate_hz)) if p.scan_rate_hz > 0 else 0
+        # Every LaserScan's fields but its header and ranges (scan_time: between two scans [s]).
+        self._scan_fields = {name: getattr(self.scanner, name) for name in (
+            'angle_min', 'angle_max', 'angle_increment', 'range_min', 'range_max')}
+        self._scan_fields['scan_time'] = self._scan_every / p.rate_hz
         self._steps = 0
         scan_frame = resolve_frame(node.get_namespace(), p.scan_frame_id, 'base_scan')
         self._scan_frames = [namespaced_frame(name, scan_frame) for name in names]
@@ -121,9 +121,11 @@ class Surroundings:
         map_msg = self.map_message(stamp_ns)
         self._map_pub.publish(map_msg)
         self.set_frames(frames)
-        static = TFMessage()
-        static.transforms = [self._identity(base, scan, stamp_ns)
-                             for (_, base), scan in zip(frames, self._scan_frames)]
+        # The identity (a message's quaternion is w = 1 unless set), stamped now.
+        stamp = Time(nanoseconds=stamp_ns).to_msg()
+        static = TFMessage(transforms=[
+            TransformStamped(header=Header(stamp=stamp, frame_id=base), child_frame_id=scan)
+            for (_, base), scan in zip(frames, self._scan_frames)])
         self._static_pub.publish(static)
         if taps:
             taps.write(self._map_pub.topic_name, map_msg, stamp_ns)
@@ -136,9 +138,8 @@ class Surroundings:
     def map_message(self, stamp_ns):
         """Return the map as a nav_msgs/OccupancyGrid stamped stamp_ns."""
         grid = self.grid
-        msg = OccupancyGrid()
-        msg.header.frame_id = self.map_frame
-        msg.header.stamp = Time(nanoseconds=stamp_ns).to_msg()
+        msg = OccupancyGrid(header=Header(stamp=Time(nanoseconds=stamp_ns).to_msg(),
+                                          frame_id=self.map_frame))
         msg.info.map_load_time = msg.header.stamp
         msg.info.resolution = float(grid.resolution)
         msg.info.width, msg.info.height = int(grid.width), int(grid.height)
@@ -164,28 +165,10 @@ class Surroundings:
         if not due:
             return
         ranges = self.scanner.scan(*world.map_poses())
-        scanner = self.scanner
         stamp = Time(nanoseconds=stamp_ns).to_msg()
         for pub, frame, row in zip(self.scan_pubs, self._scan_frames, ranges):
-            msg = LaserScan()
-            msg.header.stamp = stamp
-            msg.header.frame_id = frame
-            msg.angle_min = float(scanner.angle_min)
-            msg.angle_max = float(scanner.angle_max)
-            msg.angle_increment = float(scanner.angle_increment)
-            msg.scan_time = self._scan_time
-            msg.range_min = float(scanner.range_min)
-            msg.range_max = float(scanner.range_max)
-            msg.ranges = array.array('f', row.tobytes())
+            msg = LaserScan(header=Header(stamp=stamp, frame_id=frame),
+                            ranges=array.array('f', row.tobytes()), **self._scan_fields)
             pub.publish(msg)
             if taps:
                 taps.write(pub.topic_name, msg, stamp_ns)
-
-    @staticmethod
-    def _identity(parent, child, stamp_ns):
-        transform = TransformStamped()
-        transform.header.stamp = Time(nanoseconds=stamp_ns).to_msg()
-        transform.header.frame_id = parent
-        transform.child_frame_id = child
-        transform.transform.rotation.w = 1.0
-        return transform

@@ -74,8 +74,7 @@ class World:
     def __init__(self, poses, *, names=None, timeout_ns=0, limits=None, walls=None):
         n = len(poses)
         self.names = list(names) if names is not None else [''] * n
-        self.x = np.array([float(p[0]) for p in poses])
-        self.y = np.array([float(p[1]) for p in poses])
+        self.x, self.y = (np.array([float(p[k]) for p in poses]) for k in (0, 1))
         self.yaw = np.array([normalize_angle(float(p[2])) for p in poses])
         for name in _VELOCITIES:
             setattr(self, name, np.zeros(n))
@@ -243,8 +242,7 @@ class World:
         if self.walls is not None:
             known = integrated[integrated != NOT_YET]
             begin_ns = min(int(known.min()), now_ns) if known.size else now_ns
-            self._drives = {}
-            self._begin_ns = begin_ns
+            self._drives, self._begin_ns = {}, begin_ns
             for i in range(len(self)):
                 self._advance(i, now_ns)
             drives, self._drives = self._drives, None
@@ -326,20 +324,17 @@ class World:
             return
         x, y, yaw = float(self.x[i]), float(self.y[i]), float(self.yaw[i])
         linear, angular = float(self.linear[i]), float(self.angular[i])
-        limits = self.limits
-        walls = self.walls
+        limits, walls = self.limits, self.walls
         pieces = None
         if self._drives is not None:  # a step of solid robots: keep the arcs (_collide)
-            pieces = self._drives.setdefault(
-                i, ((x, y, yaw), self._to_map(i, x, y, yaw), []))[2]
+            pieces = self._drives.setdefault(i, ((x, y, yaw), self._to_map(i, x, y, yaw), []))[2]
             begin = (start_ns - self._begin_ns) / _NS
         for step, held_linear, held_angular, linear, angular in arcs(
                 linear, angular, float(self.target_linear[i]), float(self.target_angular[i]),
                 limits['max_linear_accel'][i], limits['max_angular_accel'][i], self.ramp_step,
                 (to_ns - start_ns) / _NS):
             if walls is not None and held_linear:
-                touch = walls.contact(*self._to_map(i, x, y, yaw), held_linear, held_angular,
-                                      step)
+                touch = walls.contact(*self._to_map(i, x, y, yaw), held_linear, held_angular, step)
                 if touch is not None:
                     x, y, yaw = integrate(x, y, yaw, held_linear, held_angular, touch)
                     if pieces is not None:
