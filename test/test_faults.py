@@ -343,6 +343,26 @@ def test_a_backlog_of_commands_does_not_hold_the_odometry_back(graph):
         assert graph.spin_until(lambda: len(watcher.odoms) > heard, 5.0)
 
 
+def test_a_stalled_simulator_goes_on_from_now_without_timing_a_teleop_out(graph, capfd):
+    # Freewheeling at 4x, no participant: a stall of the whole process (0.4 s, as a loaded
+    # machine makes them) once made the clock catch up 20 steps at once, 0.8 s of simulated
+    # time with no command handled in between, and cmd_vel_timeout (0.5 s) stopped the robot.
+    namespace = f'{_PREFIX}_stall'
+    graph.add(UnicycleSim(namespace=namespace, context=graph.context,
+                          cli_args=ros_args(namespace, *SIM_CLOCK)))
+    watcher = watch(graph, namespace)
+    teleop = graph.add(Node('teleop', namespace=namespace, context=graph.context))
+    pub = teleop.create_publisher(Twist, 'cmd_vel', 10)
+    teleop.create_timer(0.04, lambda: pub.publish(command(0.2, 0.0)))
+    assert graph.spin_until(lambda: watcher.moving, 20.0)
+    stalls = []
+    teleop.create_timer(0.3, lambda: stalls.append(time.sleep(0.4)))
+    assert graph.spin_until(lambda: len(stalls) >= 2, 10.0)
+    graph.spin_for(0.2)
+    assert 'No cmd_vel' not in capfd.readouterr().err
+    assert twist(watcher.odom) == (0.2, 0.0)
+
+
 def test_two_controllers_at_once_are_warned_about_once(graph, capfd):
     # The simulator in this process, owning its clock on its own timers as the executable
     # does: who publishes on cmd_vel it learns from the ROS graph, the same from a process.

@@ -26,6 +26,7 @@ participant is given up only after ``lockstep_timeout`` of silence, never the si
 itself.  docs/time.md ("When things go wrong") tells the rest.
 """
 
+import math
 import time
 
 from rclpy.serialization import deserialize_message
@@ -41,7 +42,7 @@ from sim_diffdrive.throttle import Throttle
 from std_msgs.msg import String
 
 _NS = 1_000_000_000
-# Freewheeling catches up at most this many steps per timer call.
+# Freewheeling takes at most this many steps per timer call.
 _MAX_CATCH_UP = 20
 # While the clock is held, /clock and the roster are re-sent [s, wall]: a participant that lost
 # the step's /clock gets it again, and takes the roster for a sign that the simulator is alive
@@ -127,8 +128,12 @@ class LockstepOwner:
         waited = now - wall
         if len(ledger.members) <= 1:
             self._publish_roster(wall=wall)
-            # Freewheel until the first answer.
-            return min(int(waited / budget_s), _MAX_CATCH_UP), False
+            # Freewheel until the first answer: the steps the timer's period holds and one
+            # more (a late tick), no more.  After a stall of the simulator the clock goes on
+            # from now rather than run through seconds of simulated time with no command
+            # handled in between (cmd_vel_timeout would stop a robot whose teleop never paused).
+            most = min(math.ceil(period_s / budget_s - 1e-9) + 1, _MAX_CATCH_UP)
+            return min(int(waited / budget_s), most), False
         if self._waiting is None:
             # Worked out again only after news; the clock timer in between only paces.
             self._waiting = ledger.waiting_for(sim.now_ns())
