@@ -131,8 +131,13 @@ class MessageCounter:
                 self.clock_step_ns = clock_ns - self.clock_ns
             self.clock_ns = clock_ns
             self.clock_messages += 1
-            if self._sim_time_calls:
-                self._catch_up()
+            if self._sim_time_calls:  # run the calls duplicate events made rcl skip, now due
+                timers = set(self.node.timers)  # node.timers is a generator: one pass, kept
+                for timer, calls in list(self._sim_time_calls.items()):
+                    if timer in timers:
+                        calls.catch_up()
+                    else:  # destroyed
+                        del self._sim_time_calls[timer]
             self._after()
         return counted
 
@@ -167,15 +172,6 @@ class MessageCounter:
         if calls is None or calls.due_ns is None:
             return timer.time_until_next_call()
         return max(0, calls.due_ns - timer.clock.now().nanoseconds)
-
-    def _catch_up(self):
-        """Run the calls that duplicate events made rcl skip, now due (after each /clock)."""
-        timers = set(self.node.timers)  # node.timers is a generator: one pass, kept
-        for timer, calls in list(self._sim_time_calls.items()):
-            if timer in timers:
-                calls.catch_up()
-            else:  # destroyed
-                del self._sim_time_calls[timer]
 
     def _counted_publish(self, publish, topic, stamp_ns):
         def counted(msg):
