@@ -400,8 +400,7 @@ class SimGraph(Lockstep):
 
     def close(self):
         super().close()
-        self._probes = {}
-        self._scans = {}
+        self._probes, self._scans = {}, {}
         if self._own_context:
             rclpy.try_shutdown(context=self.context)
 

@@ -53,7 +53,12 @@ class Process:
             fd, log_path = tempfile.mkstemp(prefix='sim_graph_', suffix='.log')
             os.close(fd)
         self.log_path = Path(log_path)
-        _let_children_hear_ctrl_c()
+        # A process started from a non-interactive shell's background job ignores SIGINT, and so
+        # would its children: a handler (reset to the default at exec) rather than an ignored
+        # signal lets a child hear a user's Ctrl-C.
+        if (signal.getsignal(signal.SIGINT) is signal.SIG_IGN
+                and threading.current_thread() is threading.main_thread()):
+            signal.signal(signal.SIGINT, signal.default_int_handler)
         with open(self.log_path, 'w') as log:
             self.popen = subprocess.Popen(
                 command, stdin=stdin, stdout=log, stderr=subprocess.STDOUT,
@@ -113,22 +118,19 @@ class Process:
             try:
                 self.popen.wait(grace)
             except subprocess.TimeoutExpired:
-                self._kill_with_stacks()
+                self.popen.send_signal(signal.SIGUSR1)
+                try:
+                    self.popen.wait(STACKS_WAIT)  # a process without the handler dies of SIGUSR1
+                except subprocess.TimeoutExpired:
+                    self._write_native_stacks()
+                    self.popen.kill()
+                    self.popen.wait()
         self.poll()
         if self.popen.stdin:
             self.popen.stdin.close()
         if self._temporary and self._final_output is None:
             self._final_output = self.output()
             self.log_path.unlink(missing_ok=True)
-
-    def _kill_with_stacks(self):
-        self.popen.send_signal(signal.SIGUSR1)
-        try:
-            self.popen.wait(STACKS_WAIT)  # a process without the handler dies of SIGUSR1
-        except subprocess.TimeoutExpired:
-            self._write_native_stacks()
-            self.popen.kill()
-            self.popen.wait()
 
     def _write_native_stacks(self):
         """Add every thread's native stack (gdb) to the log: where rclpy or DDS hangs."""
@@ -208,12 +210,3 @@ def cpu_seconds(pid):
             with open(f'/proc/{pid}/task/{task}/schedstat') as schedstat:
                 total += int(schedstat.read().split()[0])
     return total * 1e-9
-
-
-def _let_children_hear_ctrl_c():
-    # A process started from a non-interactive shell's background job ignores SIGINT, and so
-    # would its children: a handler (reset to the default at exec) rather than an ignored
-    # signal lets a child hear a user's Ctrl-C.
-    if (signal.getsignal(signal.SIGINT) is signal.SIG_IGN
-            and threading.current_thread() is threading.main_thread()):
-        signal.signal(signal.SIGINT, signal.default_int_handler)
