@@ -248,10 +248,8 @@ class _LiveParameters:
 
     def _refuse(self, parameters):
         refused, self._refused = self._refused, {}
-        for parameter in parameters:
-            if parameter.name in refused:
-                return SetParametersResult(successful=False, reason=refused[parameter.name])
-        return SetParametersResult(successful=True)
+        reason = next((refused[p.name] for p in parameters if p.name in refused), None)
+        return SetParametersResult(successful=reason is None, reason=reason or '')
 
     def _apply(self, parameters):
         for parameter in parameters:
