@@ -20,10 +20,8 @@ message the simulator handled (``heard_message``); each says whether the step ma
 settled, and the clock then asks ``may_step``: how many steps it may take now (it freewheels
 until the first answer, as PX4's lockstep does) and whether to re-send the current /clock.
 The owner publishes who is counted on ``<clock>/roster``; it neither steps nor writes the
-clock, and calls nobody back.  No single lost sample may stall or skew a run: rclpy's
-TimeSource takes /clock best-effort, so while the clock is held it is re-sent (RESEND_S); a
-participant is given up only after ``lockstep_timeout`` of silence, never the simulator
-itself.  docs/time.md ("When things go wrong") tells the rest.
+clock, and calls nobody back.  Why it re-sends a held /clock (RESEND_S) and when it goes on
+without a participant (never without itself): docs/time.md ("When things go wrong").
 """
 
 import math
