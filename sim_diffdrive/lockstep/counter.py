@@ -17,10 +17,8 @@ The one way the lockstep counts a node's messages: its MessageCounter (docs/time
 
 Participants, the simulator and the in-process engine (testing/graph.py) all count so, by
 wrapping the node's subscription and timer callbacks and ``publish`` methods, so the node's
-code does not change.  ``MessageCounter.of(node, ...)`` is the only place that wraps: a node
-has one counter however many users it has, each adding itself to ``listeners``.
-
-Being the one place that wraps rclpy's objects, it relies on rclpy behaviours that no API
+code does not change.  ``MessageCounter.of(node, ...)`` is the only place that wraps (one
+counter a node, however many use it), and so relies on rclpy behaviours that no API
 promises: a subscription's (a raw one's too) and a timer's ``callback`` attribute is read at
 dispatch, under both executors; a ``publish`` set on a publisher shadows the method, and
 ``node.publishers`` holds the objects created; the TimeSource's /clock subscription is one of

@@ -60,11 +60,10 @@ class Lockstep:
     """
     The nodes of one test or benchmark run, spun by ``executor``, stepped by ``step()``.
 
-    What is owed is the clock owner's StepLedger, as across processes: each discovered node is
-    a member whose answer is its MessageCounter's live dicts, so no answer travels and counts
-    are exact without stamps; what a participant checks before it answers (its clock shows the
-    time, no timer is due) is checked in settled().  A removed node leaves, and what it sent is
-    still waited for; what members hear beyond what members sent is forgotten at each step.
+    What is owed is the clock owner's StepLedger, as across processes (docs/time.md, "In
+    tests"): each discovered node is a member whose answer is its MessageCounter's live dicts,
+    so no answer travels and counts are exact without stamps; what a participant checks before
+    it answers (its clock shows the time, no timer is due) is checked in settled().
     """
 
     def __init__(self, executor):
