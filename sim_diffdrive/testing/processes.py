@@ -177,27 +177,25 @@ def stop(process, signum=signal.SIGINT, timeout=5.0):
 
 def stop_all(processes, signum=signal.SIGINT, timeout=5.0):
     """stop() several processes at once, each signalled before any is waited for; outputs."""
-    running = [process for process in processes if process.poll() is None]
-    for process in running:
-        process.send(signum)
-    _wait_all(running, timeout)
+    _signal_all(processes, lambda process: process.send(signum), timeout)
     kill_all(processes)
     return [process.output() for process in processes]
 
 
 def kill_all(processes, grace=3.0):
     """Process.kill() several processes at once: SIGTERM to every one, then wait."""
-    running = [process for process in processes if process.popen.poll() is None]
-    for process in running:
-        process.popen.terminate()
-    _wait_all(running, grace)
+    _signal_all(processes, lambda process: process.popen.terminate(), grace)
     for process in processes:
         process.kill(grace=0.0)  # SIGKILL whatever still runs; read and remove its log
 
 
-def _wait_all(processes, timeout):
+def _signal_all(processes, signal_one, timeout):
+    """signal_one(process) for each that runs, then wait for them all up to timeout [s]."""
+    running = [process for process in processes if process.poll() is None]
+    for process in running:
+        signal_one(process)
     deadline = time.monotonic() + timeout
-    for process in processes:
+    for process in running:
         with contextlib.suppress(subprocess.TimeoutExpired):
             process.wait(max(0.0, deadline - time.monotonic()))
 
