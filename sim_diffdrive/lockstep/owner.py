@@ -226,11 +226,10 @@ class LockstepOwner:
         now_ns = self.sim.now_ns()
         roster = ledger.roster(self.sim.get_fully_qualified_name(), now_ns,
                                [ledger.describe(reason, now_ns) for reason in waiting])
-        for pid in roster.members - self._announced:
-            if pid != self._owner_id:
-                self.sim.get_logger().info(
-                    f'Lockstep: {ledger.members[pid].answer.node} takes part from '
-                    f'{now_ns / _NS:.3f} s on; {len(roster.members) - 1} participant(s)')
+        for pid in roster.members - self._announced - {self._owner_id}:
+            self.sim.get_logger().info(
+                f'Lockstep: {ledger.members[pid].answer.node} takes part from '
+                f'{now_ns / _NS:.3f} s on; {len(roster.members) - 1} participant(s)')
         self._announced = roster.members
         self._roster_version = ledger.version
         self._roster_pub.publish(String(data=roster.encode()))
