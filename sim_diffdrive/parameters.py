@@ -66,9 +66,7 @@ class Spec:
 
     @property
     def type_(self):
-        if self.kind is not None:
-            return self.kind
-        return list if isinstance(self.default, list) else type(self.default)
+        return self.kind or (list if isinstance(self.default, list) else type(self.default))
 
     def descriptor(self):
         descriptor = ParameterDescriptor(
