@@ -57,8 +57,7 @@ class Participant:
         self.owner = None
         self.joined = False
         # The latest roster from the clock owner, and when it came [s, monotonic].
-        self.roster = None
-        self.roster_wall = None
+        self.roster = self.roster_wall = None
         self._last = None
         self._last_clock_messages = 0
         self.left = False
@@ -220,8 +219,7 @@ class Participant:
         """Stop answering for node (its last messages still count); see Member.leave."""
         state = self._nodes[node]
         if state.active:
-            state.sent = dict(state.counter.sent)
-            state.sent_stamp = dict(state.counter.sent_stamp)
+            state.sent, state.sent_stamp = dict(state.counter.sent), dict(state.counter.sent_stamp)
             self._mark(state, None)
             state.active = False
             self._active -= 1
@@ -345,8 +343,7 @@ class _NodeState:
         self.executor_checked = False
         self.settled_ns = None
         # What it had sent when it stopped being answered for.
-        self.sent = {}
-        self.sent_stamp = {}
+        self.sent, self.sent_stamp = {}, {}
 
 
 def _check_executor(node):
