@@ -123,7 +123,7 @@ class Lockstep:
             node.destroy_node()
         self.nodes = []
 
-    def spin_until(self, predicate, timeout, poll=0.001):
+    def spin_until(self, predicate, timeout=10.0, poll=0.01):
         """Spin until predicate() is true; return whether it became true within timeout (wall)."""
         deadline = time.monotonic() + timeout
         while not predicate():
@@ -388,10 +388,6 @@ class SimGraph(Lockstep):
             log = f':\n{process.describe()}' if process is not None else ''
             raise RuntimeError(f'no odometry within {timeout} s: is a simulator running?{log}')
         return self.odometry.odom
-
-    def spin_until(self, predicate, timeout=10.0, poll=0.01):
-        """Spin until predicate() is true; return whether it became true within timeout (wall)."""
-        return super().spin_until(predicate, timeout, poll)
 
     def spin_for(self, seconds):
         """Spin for a number of wall seconds."""
