@@ -66,9 +66,7 @@ class Spec:
 
     @property
     def type_(self):
-        if self.kind is not None:
-            return self.kind
-        return list if isinstance(self.default, list) else type(self.default)
+        return self.kind or (list if isinstance(self.default, list) else type(self.default))
 
     def descriptor(self):
         descriptor = ParameterDescriptor(
@@ -85,14 +83,10 @@ class Spec:
         return descriptor
 
     def constraints(self):
-        parts = []
-        if self.length is not None:
-            parts.append(f'{self.length} values')
-        if self.high is not None:
-            parts.append(self._interval())
-        if self.choices:
-            parts.append('one of ' + ', '.join(self.choices))
-        return '; '.join(parts)
+        return '; '.join(filter(None, (
+            self.length is not None and f'{self.length} values',
+            self.high is not None and self._interval(),
+            self.choices and 'one of ' + ', '.join(self.choices))))
 
     def check(self, value):
         """Return value converted to this parameter's type, or raise ParameterError."""
@@ -248,10 +242,8 @@ class _LiveParameters:
 
     def _refuse(self, parameters):
         refused, self._refused = self._refused, {}
-        for parameter in parameters:
-            if parameter.name in refused:
-                return SetParametersResult(successful=False, reason=refused[parameter.name])
-        return SetParametersResult(successful=True)
+        reason = next((refused[p.name] for p in parameters if p.name in refused), None)
+        return SetParametersResult(successful=reason is None, reason=reason or '')
 
     def _apply(self, parameters):
         for parameter in parameters:

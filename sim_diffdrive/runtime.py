@@ -158,8 +158,11 @@ def run(make_node, args=None):
             # rclpy's shutdown, where a QoS event handler can crash (rclpy issue 1644).  The
             # watchdog is faulthandler's thread: it needs no GIL, which a spinning call holds.
             faulthandler.dump_traceback_later(CLEANUP_TIMEOUT_S, exit=True)
-            if executor is not None:
-                _shut_down(executor, logger)
+            try:
+                if executor is not None:
+                    executor.shutdown()
+            except (Exception, KeyboardInterrupt) as error:  # logged; the cleanup goes on
+                logger.error(f'Executor shutdown failed ({type(error).__name__}: {error})')
             for node in nodes:
                 if not _destroy(node):
                     exit_code = EXIT_FAILED
@@ -171,14 +174,6 @@ def run(make_node, args=None):
 
 def _as_list(nodes):
     return list(nodes) if isinstance(nodes, (list, tuple)) else [nodes]
-
-
-def _shut_down(executor, logger):
-    """Shut the executor down; a failure (or a second Ctrl-C) is logged, and cleanup goes on."""
-    try:
-        executor.shutdown()
-    except (Exception, KeyboardInterrupt) as error:
-        logger.error(f'Executor shutdown failed ({type(error).__name__}: {error})')
 
 
 def _destroy(node):
@@ -193,10 +188,8 @@ def _destroy(node):
 
 def _run_shutdown_hook(node, logger):
     """Call the node's shutdown_hook, if any; return False when it failed (it is logged)."""
-    hook = getattr(node, 'shutdown_hook', None)
     try:
-        if hook is not None:
-            hook()
+        getattr(node, 'shutdown_hook', lambda: None)()
     except KeyboardInterrupt:
         # A second Ctrl-C during the final stop must not skip the cleanup after it.
         pass

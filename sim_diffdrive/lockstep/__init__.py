@@ -12,9 +12,4 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""
-Simulated time across nodes and processes (described in docs/time.md).
-
-The handshake's messages (handshake.py, no ROS), the simulator's side (owner.py), a node's side
-(participant.py, ``take_part``), and how both count messages (counter.py).
-"""
+"""Simulated time across nodes and processes: docs/time.md, "For implementers", per module."""

@@ -17,10 +17,8 @@ The one way the lockstep counts a node's messages: its MessageCounter (docs/time
 
 Participants, the simulator and the in-process engine (testing/graph.py) all count so, by
 wrapping the node's subscription and timer callbacks and ``publish`` methods, so the node's
-code does not change.  ``MessageCounter.of(node, ...)`` is the only place that wraps: a node
-has one counter however many users it has, each adding itself to ``listeners``.
-
-Being the one place that wraps rclpy's objects, it relies on rclpy behaviours that no API
+code does not change.  ``MessageCounter.of(node, ...)`` is the only place that wraps (one
+counter a node, however many use it), and so relies on rclpy behaviours that no API
 promises: a subscription's (a raw one's too) and a timer's ``callback`` attribute is read at
 dispatch, under both executors; a ``publish`` set on a publisher shadows the method, and
 ``node.publishers`` holds the objects created; the TimeSource's /clock subscription is one of
@@ -131,8 +129,13 @@ class MessageCounter:
                 self.clock_step_ns = clock_ns - self.clock_ns
             self.clock_ns = clock_ns
             self.clock_messages += 1
-            if self._sim_time_calls:
-                self._catch_up()
+            if self._sim_time_calls:  # run the calls duplicate events made rcl skip, now due
+                timers = set(self.node.timers)  # node.timers is a generator: one pass, kept
+                for timer, calls in list(self._sim_time_calls.items()):
+                    if timer in timers:
+                        calls.catch_up()
+                    else:  # destroyed
+                        del self._sim_time_calls[timer]
             self._after()
         return counted
 
@@ -167,15 +170,6 @@ class MessageCounter:
         if calls is None or calls.due_ns is None:
             return timer.time_until_next_call()
         return max(0, calls.due_ns - timer.clock.now().nanoseconds)
-
-    def _catch_up(self):
-        """Run the calls that duplicate events made rcl skip, now due (after each /clock)."""
-        timers = set(self.node.timers)  # node.timers is a generator: one pass, kept
-        for timer, calls in list(self._sim_time_calls.items()):
-            if timer in timers:
-                calls.catch_up()
-            else:  # destroyed
-                del self._sim_time_calls[timer]
 
     def _counted_publish(self, publish, topic, stamp_ns):
         def counted(msg):

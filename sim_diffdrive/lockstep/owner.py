@@ -20,10 +20,8 @@ message the simulator handled (``heard_message``); each says whether the step ma
 settled, and the clock then asks ``may_step``: how many steps it may take now (it freewheels
 until the first answer, as PX4's lockstep does) and whether to re-send the current /clock.
 The owner publishes who is counted on ``<clock>/roster``; it neither steps nor writes the
-clock, and calls nobody back.  No single lost sample may stall or skew a run: rclpy's
-TimeSource takes /clock best-effort, so while the clock is held it is re-sent (RESEND_S); a
-participant is given up only after ``lockstep_timeout`` of silence, never the simulator
-itself.  docs/time.md ("When things go wrong") tells the rest.
+clock, and calls nobody back.  Why it re-sends a held /clock (RESEND_S) and when it goes on
+without a participant (never without itself): docs/time.md ("When things go wrong").
 """
 
 import math
@@ -228,11 +226,10 @@ class LockstepOwner:
         now_ns = self.sim.now_ns()
         roster = ledger.roster(self.sim.get_fully_qualified_name(), now_ns,
                                [ledger.describe(reason, now_ns) for reason in waiting])
-        for pid in roster.members - self._announced:
-            if pid != self._owner_id:
-                self.sim.get_logger().info(
-                    f'Lockstep: {ledger.members[pid].answer.node} takes part from '
-                    f'{now_ns / _NS:.3f} s on; {len(roster.members) - 1} participant(s)')
+        for pid in roster.members - self._announced - {self._owner_id}:
+            self.sim.get_logger().info(
+                f'Lockstep: {ledger.members[pid].answer.node} takes part from '
+                f'{now_ns / _NS:.3f} s on; {len(roster.members) - 1} participant(s)')
         self._announced = roster.members
         self._roster_version = ledger.version
         self._roster_pub.publish(String(data=roster.encode()))

@@ -16,12 +16,12 @@
 Take part in the simulator's lockstep: ``take_part(node)`` is the one call a node needs.
 
 The node runs on simulated time; its callbacks and publishers are counted by its
-MessageCounter (counter.py), so its code does not change.  ``take_part(first).add(node)``
-makes several nodes of a process one participant (motion_fleet does): one answer a step for
-them all, what they sent summed, a topic handled as far as every node that handles it has got.
-The rules for a node that takes part: docs/time.md ("Take part with your own node").
+MessageCounter (counter.py), so its code does not change; ``take_part(first).add(node)``
+makes several nodes of a process one participant.  The rules for a node that takes part, and
+for several nodes: docs/time.md ("Take part with your own node").
 """
 
+from operator import attrgetter
 import time
 import uuid
 
@@ -57,8 +57,7 @@ class Participant:
         self.owner = None
         self.joined = False
         # The latest roster from the clock owner, and when it came [s, monotonic].
-        self.roster = None
-        self.roster_wall = None
+        self.roster = self.roster_wall = None
         self._last = None
         self._last_clock_messages = 0
         self.left = False
@@ -172,14 +171,13 @@ class Participant:
 
     def _totals(self):
         """Return (step [ns], (sent, heard, sent_stamp, heard_stamp)) of the nodes together."""
-        states = list(self._nodes.values())
-        if len(states) == 1:  # one node: its own counts
-            c = states[0].counter
+        if len(self._nodes) == 1:  # one node (self.counter's): its own counts
+            c = self.counter
             return c.clock_ns or 0, (
                 dict(c.sent), dict(c.heard), dict(c.sent_stamp), dict(c.heard_stamp))
         sent, heard, sent_stamp, heard_stamp = {}, {}, {}, {}
         step_ns = 0
-        for state in states:
+        for state in self._nodes.values():
             c = state.counter
             # What a node sent counts for good (a gone node's last stop too); what it heard,
             # only while it is answered for: a topic counts as handled by all that handle it.
@@ -221,8 +219,7 @@ class Participant:
         """Stop answering for node (its last messages still count); see Member.leave."""
         state = self._nodes[node]
         if state.active:
-            state.sent = dict(state.counter.sent)
-            state.sent_stamp = dict(state.counter.sent_stamp)
+            state.sent, state.sent_stamp = dict(state.counter.sent), dict(state.counter.sent_stamp)
             self._mark(state, None)
             state.active = False
             self._active -= 1
@@ -310,12 +307,9 @@ class Member:
         self.counter = participant._nodes[node].counter
         self.id = participant.id
 
-    owner = property(lambda self: self.participant.owner)
-    joined = property(lambda self: self.participant.joined)
-    roster = property(lambda self: self.participant.roster)
-    roster_wall = property(lambda self: self.participant.roster_wall)
-    dropped_ns = property(lambda self: self.participant.dropped_ns)
-    owner_present = property(lambda self: self.participant.owner_present)
+    owner, joined, roster, roster_wall, dropped_ns, owner_present = (
+        property(attrgetter('participant.' + name)) for name in (
+            'owner', 'joined', 'roster', 'roster_wall', 'dropped_ns', 'owner_present'))
     # This node's clock step, read-only (see Participant.clock_step_ns).
     clock_step_ns = property(lambda self: self.counter.clock_step_ns)
 
@@ -349,8 +343,7 @@ class _NodeState:
         self.executor_checked = False
         self.settled_ns = None
         # What it had sent when it stopped being answered for.
-        self.sent = {}
-        self.sent_stamp = {}
+        self.sent, self.sent_stamp = {}, {}
 
 
 def _check_executor(node):

@@ -106,18 +106,17 @@ _TAPS = (
 
 def open_taps(node):
     """Return the Taps node.params ask for (record_file, foxglove_port, view_port)."""
-    taps = [_open(node, *tap) for tap in _TAPS if getattr(node.params, tap[0])]
-    return Taps(node, [tap for tap in taps if tap is not None])
-
-
-def _open(node, parameter, package, module, name):
-    try:
-        tap_class = getattr(importlib.import_module(f'sim_diffdrive.taps.{module}'), name)
-        return tap_class(getattr(node.params, parameter), node)
-    except ImportError as error:
-        node.get_logger().error(
-            f'{parameter} needs the Python package {package} ({error}); pip install {package}. '
-            'Running without it.')
-    except OSError as error:
-        node.get_logger().error(f'{parameter}: {error}. Running without it.')
-    return None
+    taps = []
+    for parameter, package, module, name in _TAPS:
+        value = getattr(node.params, parameter)
+        try:
+            if value:
+                tap_class = getattr(importlib.import_module(f'sim_diffdrive.taps.{module}'), name)
+                taps.append(tap_class(value, node))
+        except ImportError as error:
+            node.get_logger().error(
+                f'{parameter} needs the Python package {package} ({error}); pip install '
+                f'{package}. Running without it.')
+        except OSError as error:
+            node.get_logger().error(f'{parameter}: {error}. Running without it.')
+    return Taps(node, taps)

@@ -82,7 +82,10 @@ class FoxgloveLive:
         msg_class = message_class(self._node, topic, msg, self._types)
         channel = self._channels.get(topic)
         if channel is None:
-            channel = self._channels[topic] = self._advertise(topic, msg_class)
+            name = type_name(msg_class)
+            channel = self._channels[topic] = self._foxglove.Channel(
+                topic, message_encoding='cdr', context=self._context, schema=self._foxglove.Schema(
+                    name=name, encoding='ros2msg', data=message_definition(name).encode()))
         if msg_class is Odometry:  # the time, and what draws the robot
             self._server.broadcast_time(stamp_ns)
             self._write_robot(msg, stamp_ns)
@@ -102,13 +105,6 @@ class FoxgloveLive:
         if server is not None:
             server.stop()
             self._node.get_logger().info(f'Foxglove: {self.url} closed')
-
-    def _advertise(self, topic, msg_class):
-        name = type_name(msg_class)
-        schema = self._foxglove.Schema(
-            name=name, encoding='ros2msg', data=message_definition(name).encode())
-        return self._foxglove.Channel(
-            topic, message_encoding='cdr', schema=schema, context=self._context)
 
     def _write_robot(self, odom, stamp_ns):
         """Draw the robot of odom (an Odometry or its bytes) for whoever watches."""

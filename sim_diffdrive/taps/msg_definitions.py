@@ -54,10 +54,7 @@ def message_class(node, topic, msg, types):
     """Return the class of msg (a message, or its CDR bytes: cached in types) node has on topic."""
     if not isinstance(msg, bytes):
         return type(msg)
-    msg_class = types.get(topic)
-    if msg_class is None:
-        msg_class = types[topic] = topic_type(node, topic)
-    return msg_class
+    return types.get(topic) or types.setdefault(topic, topic_type(node, topic))
 
 
 def message_definition(name):

@@ -63,15 +63,10 @@ def rviz_config(template, namespace='', robots=(), fixed_frame=None):
         else:
             displays.append(display)
     manager['Displays'] = displays
-    tools = []
-    for tool in manager.get('Tools', []):
-        if tool['Class'] != _POSE_TOOL:
-            tools.append(tool)
-        elif not robots:  # the pose is given in the fixed frame: the robot's own odom frame
-            tool = copy.deepcopy(tool)
-            tool['Topic']['Value'] = f'{views[0].topics}/initialpose'
-            tools.append(tool)
-    manager['Tools'] = tools
+    # The pose tool only without robots: it gives a pose in the fixed frame, the robot's odom.
+    manager['Tools'] = [
+        _with_topics(tool, views[0].topics) if tool['Class'] == _POSE_TOOL else tool
+        for tool in manager.get('Tools', []) if tool['Class'] != _POSE_TOOL or not robots]
     where = ', '.join(filter(None, (namespace and f"namespace /{namespace.strip('/')}",
                                     robots and f"robots {', '.join(robots)}")))
     return (f'# Written by launch/unicycle.launch.py from rviz/unicycle.rviz for {where}.\n'

@@ -232,9 +232,8 @@ class BrowserView:
 
     def _when(self, stamps_ns):
         """Return the timeline's value of stamps [ns]: seconds on sim time, else dates."""
-        if self._sim_clock:
-            return {'duration': stamps_ns * 1e-9}
-        return {'timestamp': stamps_ns.astype('datetime64[ns]')}
+        return ({'duration': stamps_ns * 1e-9} if self._sim_clock
+                else {'timestamp': stamps_ns.astype('datetime64[ns]')})
 
     def _log_static(self, names, grid=None):
         """Log what does not change during the run: axes, colours, names, line styles, map."""

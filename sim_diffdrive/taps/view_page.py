@@ -110,13 +110,11 @@ class _PageHandler(BaseHTTPRequestHandler):
             return
         path, _, query = self.path.partition('?')
         if path == RUN_PATH:
-            self._answer(' '.join(self._run).encode(), 'text/plain')
+            self._send(200, [('Content-Type', 'text/plain'), ('Cache-Control', 'no-store')],
+                       ' '.join(self._run).encode())
             return
         if path == '/' and 'url=' not in query:  # http://127.0.0.1:PORT/ opens this run
-            self.send_response(302)
-            self.send_header('Location', page_url(self.server.server_address[1], self._run[1]))
-            self.send_header('Content-Length', '0')
-            self.end_headers()
+            self._send(302, [('Location', page_url(port, self._run[1]))], b'')
             return
         upstream = http.client.HTTPConnection('127.0.0.1', self._upstream_port, timeout=10.0)
         try:
@@ -126,40 +124,30 @@ class _PageHandler(BaseHTTPRequestHandler):
             except OSError as error:
                 self.send_error(502, f'the rerun program did not answer: {error}')
                 return
+            headers = [(name, answer.getheader(name)) for name in _PASSED_HEADERS
+                       if answer.getheader(name) is not None] + [('Cache-Control', 'no-cache')]
             if path in ('/', '/index.html') and answer.status == 200:
-                self._send(answer, follow(confine(answer.read()), self._run[0]))
+                self._send(200, headers, follow(confine(answer.read()), self._run[0]))
             else:
-                self._send(answer)
+                self._send(answer.status, headers, stream=answer)
         except (ConnectionError, TimeoutError):
             pass  # the browser left (a tab closed mid-download) or the upstream stalled
         finally:
             upstream.close()
 
-    def _send(self, answer, body=None):
-        self.send_response(answer.status)
-        for name in _PASSED_HEADERS:
-            if answer.getheader(name) is not None:
-                self.send_header(name, answer.getheader(name))
+    def _send(self, status, headers, body=None, stream=None):
+        self.send_response(status)
+        for name, value in headers:
+            self.send_header(name, value)
         if body is not None:
             self.send_header('Content-Length', str(len(body)))
         self.send_header('Content-Security-Policy', self._csp)
-        self.send_header('Cache-Control', 'no-cache')
         self.end_headers()
         if body is not None:
             self.wfile.write(body)
-            return
         # HTTP/1.0: the body ends when the connection closes, so it can stream as it comes.
-        while chunk := answer.read(_CHUNK):
+        while stream is not None and (chunk := stream.read(_CHUNK)):
             self.wfile.write(chunk)
-
-    def _answer(self, body, content_type):
-        self.send_response(200)
-        self.send_header('Content-Type', content_type)
-        self.send_header('Content-Length', str(len(body)))
-        self.send_header('Content-Security-Policy', self._csp)
-        self.send_header('Cache-Control', 'no-store')
-        self.end_headers()
-        self.wfile.write(body)
 
     def log_message(self, format, *args):  # noqa: A002 (http.server's signature)
         pass  # a page load is not news; failures reach the browser

@@ -60,11 +60,10 @@ class Lockstep:
     """
     The nodes of one test or benchmark run, spun by ``executor``, stepped by ``step()``.
 
-    What is owed is the clock owner's StepLedger, as across processes: each discovered node is
-    a member whose answer is its MessageCounter's live dicts, so no answer travels and counts
-    are exact without stamps; what a participant checks before it answers (its clock shows the
-    time, no timer is due) is checked in settled().  A removed node leaves, and what it sent is
-    still waited for; what members hear beyond what members sent is forgotten at each step.
+    What is owed is the clock owner's StepLedger, as across processes (docs/time.md, "In
+    tests"): each discovered node is a member whose answer is its MessageCounter's live dicts,
+    so no answer travels and counts are exact without stamps; what a participant checks before
+    it answers (its clock shows the time, no timer is due) is checked in settled().
     """
 
     def __init__(self, executor):
@@ -124,7 +123,7 @@ class Lockstep:
             node.destroy_node()
         self.nodes = []
 
-    def spin_until(self, predicate, timeout, poll=0.001):
+    def spin_until(self, predicate, timeout=10.0, poll=0.01):
         """Spin until predicate() is true; return whether it became true within timeout (wall)."""
         deadline = time.monotonic() + timeout
         while not predicate():
@@ -390,18 +389,13 @@ class SimGraph(Lockstep):
             raise RuntimeError(f'no odometry within {timeout} s: is a simulator running?{log}')
         return self.odometry.odom
 
-    def spin_until(self, predicate, timeout=10.0, poll=0.01):
-        """Spin until predicate() is true; return whether it became true within timeout (wall)."""
-        return super().spin_until(predicate, timeout, poll)
-
     def spin_for(self, seconds):
         """Spin for a number of wall seconds."""
         self.spin_until(lambda: False, seconds, poll=0.01)
 
     def close(self):
         super().close()
-        self._probes = {}
-        self._scans = {}
+        self._probes, self._scans = {}, {}
         if self._own_context:
             rclpy.try_shutdown(context=self.context)
 

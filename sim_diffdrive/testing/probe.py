@@ -150,17 +150,14 @@ class Probe(Node):
     @property
     def stamp_s(self):
         """Return the latest odometry's stamp [s] (sec + nanosec * 1e-9), or None."""
-        if not self.odoms:
-            return None
-        return _seconds(*divmod(self.odoms.stamp_ns(-1), _NS))
+        return _seconds(*divmod(self.odoms.stamp_ns(-1), _NS)) if self.odoms else None
 
     def send(self, linear=0.0, angular=0.0):
         self.cmd_pub.publish(twist(linear, angular))
 
     def play(self, script, period=0.1):
         """Play (linear, angular, ticks) steps on a sim-time timer, then send one zero Twist."""
-        self._script = [(v, w) for v, w, ticks in script for _ in range(ticks)]
-        self._script.append((0.0, 0.0))
+        self._script = [(v, w) for v, w, ticks in script for _ in range(ticks)] + [(0.0, 0.0)]
         self._tick = self.create_timer(period, self._on_tick)
 
     @property

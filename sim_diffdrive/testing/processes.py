@@ -53,7 +53,12 @@ class Process:
             fd, log_path = tempfile.mkstemp(prefix='sim_graph_', suffix='.log')
             os.close(fd)
         self.log_path = Path(log_path)
-        _let_children_hear_ctrl_c()
+        # A process started from a non-interactive shell's background job ignores SIGINT, and so
+        # would its children: a handler (reset to the default at exec) rather than an ignored
+        # signal lets a child hear a user's Ctrl-C.
+        if (signal.getsignal(signal.SIGINT) is signal.SIG_IGN
+                and threading.current_thread() is threading.main_thread()):
+            signal.signal(signal.SIGINT, signal.default_int_handler)
         with open(self.log_path, 'w') as log:
             self.popen = subprocess.Popen(
                 command, stdin=stdin, stdout=log, stderr=subprocess.STDOUT,
@@ -113,22 +118,19 @@ class Process:
             try:
                 self.popen.wait(grace)
             except subprocess.TimeoutExpired:
-                self._kill_with_stacks()
+                self.popen.send_signal(signal.SIGUSR1)
+                try:
+                    self.popen.wait(STACKS_WAIT)  # a process without the handler dies of SIGUSR1
+                except subprocess.TimeoutExpired:
+                    self._write_native_stacks()
+                    self.popen.kill()
+                    self.popen.wait()
         self.poll()
         if self.popen.stdin:
             self.popen.stdin.close()
         if self._temporary and self._final_output is None:
             self._final_output = self.output()
             self.log_path.unlink(missing_ok=True)
-
-    def _kill_with_stacks(self):
-        self.popen.send_signal(signal.SIGUSR1)
-        try:
-            self.popen.wait(STACKS_WAIT)  # a process without the handler dies of SIGUSR1
-        except subprocess.TimeoutExpired:
-            self._write_native_stacks()
-            self.popen.kill()
-            self.popen.wait()
 
     def _write_native_stacks(self):
         """Add every thread's native stack (gdb) to the log: where rclpy or DDS hangs."""
@@ -175,27 +177,25 @@ def stop(process, signum=signal.SIGINT, timeout=5.0):
 
 def stop_all(processes, signum=signal.SIGINT, timeout=5.0):
     """stop() several processes at once, each signalled before any is waited for; outputs."""
-    running = [process for process in processes if process.poll() is None]
-    for process in running:
-        process.send(signum)
-    _wait_all(running, timeout)
+    _signal_all(processes, lambda process: process.send(signum), timeout)
     kill_all(processes)
     return [process.output() for process in processes]
 
 
 def kill_all(processes, grace=3.0):
     """Process.kill() several processes at once: SIGTERM to every one, then wait."""
-    running = [process for process in processes if process.popen.poll() is None]
-    for process in running:
-        process.popen.terminate()
-    _wait_all(running, grace)
+    _signal_all(processes, lambda process: process.popen.terminate(), grace)
     for process in processes:
         process.kill(grace=0.0)  # SIGKILL whatever still runs; read and remove its log
 
 
-def _wait_all(processes, timeout):
+def _signal_all(processes, signal_one, timeout):
+    """signal_one(process) for each that runs, then wait for them all up to timeout [s]."""
+    running = [process for process in processes if process.poll() is None]
+    for process in running:
+        signal_one(process)
     deadline = time.monotonic() + timeout
-    for process in processes:
+    for process in running:
         with contextlib.suppress(subprocess.TimeoutExpired):
             process.wait(max(0.0, deadline - time.monotonic()))
 
@@ -208,12 +208,3 @@ def cpu_seconds(pid):
             with open(f'/proc/{pid}/task/{task}/schedstat') as schedstat:
                 total += int(schedstat.read().split()[0])
     return total * 1e-9
-
-
-def _let_children_hear_ctrl_c():
-    # A process started from a non-interactive shell's background job ignores SIGINT, and so
-    # would its children: a handler (reset to the default at exec) rather than an ignored
-    # signal lets a child hear a user's Ctrl-C.
-    if (signal.getsignal(signal.SIGINT) is signal.SIG_IGN
-            and threading.current_thread() is threading.main_thread()):
-        signal.signal(signal.SIGINT, signal.default_int_handler)
