@@ -21,7 +21,6 @@ makes several nodes of a process one participant.  The rules for a node that tak
 for several nodes: docs/time.md ("Take part with your own node").
 """
 
-from operator import attrgetter
 import time
 import uuid
 
@@ -307,9 +306,12 @@ class Member:
         self.counter = participant._nodes[node].counter
         self.id = participant.id
 
-    owner, joined, roster, roster_wall, dropped_ns, owner_present = (
-        property(attrgetter('participant.' + name)) for name in (
-            'owner', 'joined', 'roster', 'roster_wall', 'dropped_ns', 'owner_present'))
+    owner = property(lambda self: self.participant.owner)
+    joined = property(lambda self: self.participant.joined)
+    roster = property(lambda self: self.participant.roster)
+    roster_wall = property(lambda self: self.participant.roster_wall)
+    dropped_ns = property(lambda self: self.participant.dropped_ns)
+    owner_present = property(lambda self: self.participant.owner_present)
     # This node's clock step, read-only (see Participant.clock_step_ns).
     clock_step_ns = property(lambda self: self.counter.clock_step_ns)
 
