@@ -234,8 +234,11 @@ class Participant:
             state.executor_checked = _check_executor(node)
         if not state.active:
             return
+        if self._answered_later(state.counter):
+            self._mark(state, None)  # it heard a later step's message: not settled at this one
+            return
         self._mark(state, _settled_ns(node, state.counter))
-        if self.settled() and not self._answered_later(state.counter):
+        if self.settled():
             self.answer()
 
     def _answered_later(self, counter):
