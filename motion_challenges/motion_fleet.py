@@ -134,11 +134,8 @@ def _build_motion(context, robot_ns, motion, parameter_overrides, participant):
         participant=participant,
         cli_args=['--ros-args', '-r', f'__ns:={robot_ns}', '-r', f'__node:={motion}'])
     if isinstance(node, RotateRobot):
-        try:
+        with destroyed_if_refused(node):
             _start_rotation(node)
-        except BaseException:
-            node.destroy_node()
-            raise
     return node
 
 
@@ -231,11 +228,8 @@ class MotionFleet(Node):
 def make_fleet():
     """Build the fleet node and its motions; return them all, the fleet node last."""
     fleet = MotionFleet()
-    try:
+    with destroyed_if_refused(fleet):
         motions = fleet.build()
-    except BaseException:
-        fleet.destroy_node()
-        raise
     # Last, so that its shutdown_hook runs after every motion has published its final stop.
     return [*motions, fleet]
 
