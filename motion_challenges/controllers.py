@@ -167,8 +167,7 @@ class Approach:
     as max_speed.
     """
 
-    def __init__(self, max_speed, min_speed, accel, period, tolerance=TOLERANCE,
-                 robot_accel=0.0):
+    def __init__(self, max_speed, min_speed, accel, period, tolerance=TOLERANCE, robot_accel=0.0):
         self.max_speed = max_speed
         self.min_speed = min(min_speed, max_speed)
         self.accel = accel

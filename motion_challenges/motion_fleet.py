@@ -39,12 +39,8 @@ from sim_diffdrive.participant import take_part
 from sim_diffdrive.runtime import destroyed_if_refused
 from sim_diffdrive.runtime import run
 
-_MOTIONS = {
-    'rotate_robot': RotateRobot,
-    'circle_back_and_forth': CircleBackAndForth,
-    'timed_out_and_back': TimedOutAndBack,
-    'odom_out_and_back': OdomOutAndBack,
-}
+_MOTIONS = {'rotate_robot': RotateRobot, 'circle_back_and_forth': CircleBackAndForth,
+            'timed_out_and_back': TimedOutAndBack, 'odom_out_and_back': OdomOutAndBack}
 
 PARAMETERS = (
     Spec('robots', [], 'Names of the robots, one motion each in its robot namespace (robot1: '
@@ -162,8 +158,7 @@ class MotionFleet(Node):
         super().__init__('motion_fleet', **kwargs)
         with destroyed_if_refused(self):
             self.params = declare(self, PARAMETERS)
-            self.plan = fleet_plan(self.params.robots, self.params.motions,
-                                   self.get_namespace())
+            self.plan = fleet_plan(self.params.robots, self.params.motions, self.get_namespace())
         self.motions = []
         # On sim time the fleet is one participant of the lockstep: one answer per step for
         # all its motions, not one each (each costs the simulator a message and a look).

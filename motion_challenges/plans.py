@@ -202,8 +202,7 @@ def out_and_back_end(start, goal_distance, goal_angle, legs):
     return x, y, yaw
 
 
-def approach_speed(remaining, max_speed, min_speed, accel, period, robot_accel=0.0,
-                   velocity=0.0):
+def approach_speed(remaining, max_speed, min_speed, accel, period, robot_accel=0.0, velocity=0.0):
     """
     Return the speed for a closed-loop motion with remaining distance or angle to go.
 

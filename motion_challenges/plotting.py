@@ -167,8 +167,7 @@ def draw_series(heading_axes, linear_axes, angular_axes, series, legend=True):
         heading_axes.axhline(series.goal_heading_deg, **_GOAL)
     heading_axes.set_ylabel('heading [deg]')
     # Multiples of 45 or 90 deg for turns; matplotlib's choice for a small wobble.
-    values = series.heading_deg + [series.goal_heading_deg] * (
-        series.goal_heading_deg is not None)
+    values = series.heading_deg + [series.goal_heading_deg] * (series.goal_heading_deg is not None)
     if values and max(values) - min(values) > 30.0:
         step = next((s for s in _HEADING_STEPS if (max(values) - min(values)) / s <= 7.0),
                     _HEADING_STEPS[-1])
