@@ -258,13 +258,17 @@ class OutAndBack:
         while self._index < len(self.steps):
             _, kind, goal = self.steps[self._index]
             if kind is Step.DRIVE:
-                command = self._drive_command(goal, pose, predicted[0], velocity[0])
+                speed = self._drive.speed(
+                    goal - (pose.distance_to(self._step_pose) + predicted[0]), velocity[0])
+                if speed is not None:
+                    return speed, 0.0
             elif kind is Step.TURN:
-                command = self._turn_command(goal, turned, predicted[1], velocity[1])
-            else:
-                command = self._pause_command(goal, now_ns)
-            if command is not None:
-                return command
+                speed = self._turn.speed(goal - (turned - self._step_turned + predicted[1]),
+                                         velocity[1])
+                if speed is not None:
+                    return 0.0, speed
+            elif (now_ns - self._step_start_ns) / 1e9 < goal - 1e-9:  # the pause goes on
+                return 0.0, 0.0
             self._next_step(now_ns, pose, turned)
         return None
 
@@ -276,16 +280,3 @@ class OutAndBack:
         self._step_start_ns = now_ns
         self._step_pose = pose
         self._step_turned = turned
-
-    def _drive_command(self, goal, pose, metres, speed_now):
-        speed = self._drive.speed(goal - (pose.distance_to(self._step_pose) + metres), speed_now)
-        return None if speed is None else (speed, 0.0)
-
-    def _turn_command(self, goal, turned, radians, turn_rate):
-        speed = self._turn.speed(goal - (turned - self._step_turned + radians), turn_rate)
-        return None if speed is None else (0.0, speed)
-
-    def _pause_command(self, duration, now_ns):
-        if (now_ns - self._step_start_ns) / 1e9 >= duration - 1e-9:
-            return None
-        return 0.0, 0.0
