@@ -71,16 +71,13 @@ def step_series(times, values, end=None):
     """
     xs, ys = [], []
     for t, value in zip(times, values):
-        if ys and value == ys[-1]:
-            continue
-        if ys:
-            xs.append(t)
-            ys.append(ys[-1])
-        xs.append(t)
-        ys.append(value)
+        if not ys:
+            xs, ys = [t], [value]
+        elif value != ys[-1]:
+            xs += [t, t]
+            ys += [ys[-1], value]
     if ys and end is not None and end > xs[-1]:
-        xs.append(end)
-        ys.append(ys[-1])
+        xs, ys = xs + [end], ys + [ys[-1]]
     return xs, ys
 
 
