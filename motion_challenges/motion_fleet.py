@@ -69,9 +69,8 @@ def fleet_plan(robots, motions, namespace='/'):
             raise ParameterError(f"parameter 'robots' names {robot!r} twice; got {robots!r}")
         plan[robot_ns] = robot
     if len(motions) not in (1, len(robots)):
-        raise ParameterError(
-            f"parameter 'motions' must have one motion for all robots or one per robot "
-            f'({len(robots)}); got {len(motions)}: {motions!r}')
+        raise ParameterError("parameter 'motions' must have one motion for all robots or one "
+                             f'per robot ({len(robots)}); got {len(motions)}: {motions!r}')
     for motion in motions:
         if motion not in _MOTIONS:
             raise ParameterError(f"parameter 'motions' names {motion!r}, which is not one of "
@@ -83,9 +82,8 @@ def fleet_plan(robots, motions, namespace='/'):
 
 def _robot_namespace(namespace, robot):
     if not isinstance(robot, str) or robot.startswith(('/', '~')) or not robot:
-        raise ParameterError(
-            f"parameter 'robots' takes names relative to the fleet's namespace (robot1, "
-            f'site_a/robot1); got {robot!r}')
+        raise ParameterError("parameter 'robots' takes names relative to the fleet's namespace "
+                             f'(robot1, site_a/robot1); got {robot!r}')
     robot_ns = namespace.rstrip('/') + '/' + robot
     try:
         validate_namespace(robot_ns)
@@ -140,9 +138,8 @@ def _start_rotation(node):
     if node.missing_answers():
         missing = [name for name in ('angular_speed_deg', 'angle_deg', 'clockwise')
                    if getattr(p, name) is None]
-        raise ParameterError(
-            'rotate_robot asks nothing in a fleet: give ' + ', '.join(missing) + ' as '
-            'parameters (-p, or a params file section for this robot)')
+        raise ParameterError('rotate_robot asks nothing in a fleet: give ' + ', '.join(missing)
+                             + ' as parameters (-p, or a params file section for this robot)')
     node.start(RotationRequest(p.angular_speed_deg, p.angle_deg, p.clockwise))
 
 
@@ -200,10 +197,9 @@ class MotionFleet(Node):
         unheard[:0] = [f'the {what} of {", ".join(robots)}' for what, robots in (
             ('final stop', stops), ('lockstep goodbye', goodbyes)) if robots]
         if unheard:
-            self.get_logger().warning(
-                f'Not acknowledged within {MotionNode.stop_ack_timeout:g} s: '
-                f'{" and ".join(unheard)} (a subscriber is gone or stalled, or the link is '
-                'lossy)')
+            self.get_logger().warning(f'Not acknowledged within {MotionNode.stop_ack_timeout:g} '
+                                      f's: {" and ".join(unheard)} (a subscriber is gone or '
+                                      'stalled, or the link is lossy)')
         ended = [f'{robot} {motion}: '
                  + (f'exit code {node.exit_code}' if node.done else 'stopped before the end')
                  for (robot, _, motion), node in zip(self.plan, self.motions)]

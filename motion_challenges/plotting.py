@@ -224,10 +224,9 @@ def write_plot(node, end_odom, achieved):
     try:
         plot_run(plot_file, node.trajectory,
                  start=(start.x, start.y, start.yaw) if start else None,
-                 end=(end_odom.x, end_odom.y, end_odom.yaw) if end_odom else None,
-                 goal=goal, title=f'{node.get_name()}: {achieved}',
-                 series=time_series(odometry, node.sent_commands, node.start_ns,
-                                    goal[2] if goal else None))
+                 end=(end_odom.x, end_odom.y, end_odom.yaw) if end_odom else None, goal=goal,
+                 title=f'{node.get_name()}: {achieved}', series=time_series(
+                     odometry, node.sent_commands, node.start_ns, goal[2] if goal else None))
     except (ImportError, OSError) as error:
         node.get_logger().error(f'Could not write plot_file: {error}')
         return
