@@ -168,12 +168,9 @@ class Approach:
     """
 
     def __init__(self, max_speed, min_speed, accel, period, tolerance=TOLERANCE, robot_accel=0.0):
-        self.max_speed = max_speed
-        self.min_speed = min(min_speed, max_speed)
-        self.accel = accel
-        self.period = period
-        self.tolerance = tolerance
-        self.robot_accel = robot_accel
+        self.max_speed, self.min_speed = max_speed, min(min_speed, max_speed)
+        self.accel, self.period = accel, period
+        self.tolerance, self.robot_accel = tolerance, robot_accel
         # Refuse bad values now rather than on the first tick.
         approach_speed(1.0, self.max_speed, self.min_speed, accel, period)
 
@@ -225,9 +222,7 @@ class OutAndBack:
     """
 
     def __init__(self, legs, goal_distance, goal_angle, pause, drive, turn):
-        self.legs = legs
-        self._drive = drive
-        self._turn = turn
+        self.legs, self._drive, self._turn = legs, drive, turn
         leg = ((Step.DRIVE, goal_distance), (Step.PAUSE, pause),
                (Step.TURN, goal_angle), (Step.PAUSE, pause))
         self.steps = [(number, kind, goal) for number in range(1, legs + 1)
@@ -277,6 +272,4 @@ class OutAndBack:
 
     def _next_step(self, now_ns, pose, turned):
         self._index += 1
-        self._step_start_ns = now_ns
-        self._step_pose = pose
-        self._step_turned = turned
+        self._step_start_ns, self._step_pose, self._step_turned = now_ns, pose, turned

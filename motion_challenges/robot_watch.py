@@ -77,10 +77,8 @@ class RobotWatch:
     """
 
     def __init__(self, node, odom_topic, use_odom, distrust):
-        self._node = node
-        self._odom_topic = odom_topic
-        self._use_odom = use_odom
-        self._distrust = distrust
+        self._node, self._odom_topic = node, odom_topic
+        self._use_odom, self._distrust = use_odom, distrust
         self._waiting_log = Throttle(2.0)
         self._odom_wall = None  # when odometry last came [s, monotonic]
         self._wall_start = None  # set by start()
