@@ -113,29 +113,23 @@ def time_series(odometry, commands=(), start_ns=None, goal_yaw=None):
         goal_deg)
 
 
-def _arrow(axes, pose, size, color, label, marker):
-    x, y, yaw = pose
-    axes.annotate('', xy=(x + size * math.cos(yaw), y + size * math.sin(yaw)), xytext=(x, y),
-                  arrowprops=dict(_ARROW_STYLE[label], arrowstyle='-|>', color=color,
-                                  shrinkA=0, shrinkB=0))
-    # Hollow markers of different sizes keep a goal visible under an end that hit it.
-    axes.plot([x], [y], marker, color=color, markerfacecolor='none',
-              markersize=_MARKER_SIZE[marker], markeredgewidth=2, label=label)
-
-
 def draw_run(axes, trajectory, start=None, end=None, goal=None, title='', legend=True):
     """Draw a trajectory [(x, y, yaw), ...] with start, end and goal poses on axes."""
     xs, ys = [p[0] for p in trajectory], [p[1] for p in trajectory]
     axes.plot(xs, ys, '-', color='tab:blue', lw=1.5, label='driven (odometry)')
-    poses = [(pose, color, label, marker) for pose, color, label, marker in (
-        (goal, 'tab:orange', 'goal', 's'), (start, 'tab:green', 'start', 'D'),
-        (end, 'tab:red', 'end', 'o')) if pose is not None]
+    poses = [p for p in ((goal, 'tab:orange', 'goal', 's'), (start, 'tab:green', 'start', 'D'),
+                         (end, 'tab:red', 'end', 'o')) if p[0] is not None]
     px = xs + [pose[0] for pose, *_ in poses] or [0.0]
     py = ys + [pose[1] for pose, *_ in poses] or [0.0]
     span = max(max(px) - min(px), max(py) - min(py))
     size = max(_ARROW * span, _MIN_ARROW)
-    for pose, color, label, marker in poses:
-        _arrow(axes, pose, size, color, label, marker)
+    for (x, y, yaw), color, label, marker in poses:
+        axes.annotate('', xy=(x + size * math.cos(yaw), y + size * math.sin(yaw)), xytext=(x, y),
+                      arrowprops=dict(_ARROW_STYLE[label], arrowstyle='-|>', color=color,
+                                      shrinkA=0, shrinkB=0))
+        # Hollow markers of different sizes keep a goal visible under an end that hit it.
+        axes.plot([x], [y], marker, color=color, markerfacecolor='none',
+                  markersize=_MARKER_SIZE[marker], markeredgewidth=2, label=label)
     # Arrows do not count in matplotlib's limits: the view holds their tips, and a minimum.
     px += [x + size * math.cos(yaw) for (x, _, yaw), *_ in poses]
     py += [y + size * math.sin(yaw) for (_, y, yaw), *_ in poses]
@@ -146,8 +140,7 @@ def draw_run(axes, trajectory, start=None, end=None, goal=None, title='', legend
     axes.update_datalim(list(zip(*corners)))
     axes.autoscale_view()
     axes.set_aspect('equal', adjustable='datalim')
-    axes.set_xlabel('x [m]')
-    axes.set_ylabel('y [m]')
+    axes.set(xlabel='x [m]', ylabel='y [m]')
     axes.grid(True, alpha=0.3)
     if legend:
         axes.legend(loc='best', fontsize='small')
