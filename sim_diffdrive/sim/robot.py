@@ -107,8 +107,7 @@ class Robot:
 
     def on_initial_pose(self, msg):
         """Set the robot down at the pose given (in its odometry frame or the map), at rest."""
-        frame = self.odom_frame
-        map_frame = self._map_frame
+        frame, map_frame = self.odom_frame, self._map_frame
         given = msg.header.frame_id.lstrip('/')
         p = msg.pose.pose
         values = (p.position.x, p.position.y, p.orientation.x, p.orientation.y,
