@@ -66,10 +66,8 @@ def earliest_touch(tracks, radius, touched):
 
 def touch(a, b, radius):
     """Return the first time [s] tracks a and b come two radii apart, closing in, or None."""
-    edges = sorted({0.0, *a.bounds(), *b.bounds()})
+    edges = sorted({0.0, *a.bounds(), *b.bounds()})  # distinct: each span is longer than 0
     for begin, end in zip(edges, edges[1:]):
-        if end <= begin:
-            continue
         at = robot_contact(radius, a.at(begin), b.at(begin), end - begin)
         if at is not None:
             return begin + at
