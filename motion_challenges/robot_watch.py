@@ -168,8 +168,7 @@ class RobotWatch:
         node = self._node
         publishers = node.get_publishers_info_by_topic(self._odom_topic)
         subscribers = node.get_subscriptions_info_by_topic(node.cmd_pub.topic_name)
-        robots = set(node_names(publishers)) & set(node_names(subscribers))
-        return min(robots) if robots else None
+        return min(set(node_names(publishers)) & set(node_names(subscribers)), default=None)
 
     def dropped_mid_run(self):
         """Fail, stopping the robot, once the simulator has gone on without this node."""
