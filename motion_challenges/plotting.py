@@ -105,12 +105,11 @@ def time_series(odometry, commands=(), start_ns=None, goal_yaw=None):
         if heading:
             goal_deg = heading[-1] + math.degrees(
                 math.remainder(goal_yaw - math.radians(heading[-1]), 2.0 * math.pi))
-    return RunSeries(
-        t, heading, [v for _, _, v, _ in odometry],
-        [math.degrees(w) for _, _, _, w in odometry],
-        step_series(command_t, [v for _, v, _ in commands], end),
-        step_series(command_t, [math.degrees(w) for _, _, w in commands], end),
-        goal_deg)
+    return RunSeries(t, heading, [v for _, _, v, _ in odometry],
+                     [math.degrees(w) for _, _, _, w in odometry],
+                     step_series(command_t, [v for _, v, _ in commands], end),
+                     step_series(command_t, [math.degrees(w) for _, _, w in commands], end),
+                     goal_deg)
 
 
 def draw_run(axes, trajectory, start=None, end=None, goal=None, title='', legend=True):
