@@ -93,8 +93,7 @@ def time_series(odometry, commands=(), start_ns=None, goal_yaw=None):
     odometry = sorted(odometry, key=lambda sample: sample[0])
     commands = sorted(commands, key=lambda command: command[0])
     if start_ns is None:
-        firsts = [samples[0][0] for samples in (odometry, commands) if samples]
-        start_ns = min(firsts) if firsts else 0
+        start_ns = min((samples[0][0] for samples in (odometry, commands) if samples), default=0)
     t = [(stamp - start_ns) / _NS for stamp, *_ in odometry]
     heading = unwrap_deg([yaw for _, yaw, _, _ in odometry])
     command_t = [(stamp - start_ns) / _NS for stamp, *_ in commands]
