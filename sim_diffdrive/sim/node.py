@@ -220,12 +220,10 @@ class UnicycleSim(Node):
                 logger.warning(
                     f'{label}No cmd_vel for {self.params.cmd_vel_timeout:g} s: stopping the '
                     f'robot (the last came at {data // _NS}.{data % _NS:09d} s)')
-            elif kind == 'wall':
-                logger.warning(f'{label}Hit a wall at ({data[0]:.3f}, {data[1]:.3f}) in '
-                               f'{self.surroundings.map_frame}: stopped')
-            else:
-                other = self.robots[data[0]].name or 'another robot'
-                logger.warning(f'{label}Ran into {other} at ({data[1]:.3f}, {data[2]:.3f}) in '
+            else:  # a contact: data is (x, y) in the map, or for a robot (other, x, y)
+                what = ('Hit a wall' if kind == 'wall'
+                        else f'Ran into {self.robots[data[0]].name or "another robot"}')
+                logger.warning(f'{label}{what} at ({data[-2]:.3f}, {data[-1]:.3f}) in '
                                f'{self.surroundings.map_frame}: stopped')
 
     # -- parameters and reset ---------------------------------------------------------------
