@@ -44,9 +44,8 @@ class CircleBackAndForth(TimedMotion):
         radius = (f'radius {p.linear_speed / abs(p.angular_speed):.3f} m'
                   if p.angular_speed else 'a straight line')
         cycles = f'{p.cycles} cycle(s)' if p.cycles else 'until stopped'
-        self.get_logger().info(
-            f'Driving {radius} at {p.linear_speed:g} m/s, flipping every {p.half_period:g} s, '
-            f'{cycles}')
+        self.get_logger().info(f'Driving {radius} at {p.linear_speed:g} m/s, flipping every '
+                               f'{p.half_period:g} s, {cycles}')
         self.ready()
 
     def plan(self):

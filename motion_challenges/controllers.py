@@ -167,14 +167,10 @@ class Approach:
     as max_speed.
     """
 
-    def __init__(self, max_speed, min_speed, accel, period, tolerance=TOLERANCE,
-                 robot_accel=0.0):
-        self.max_speed = max_speed
-        self.min_speed = min(min_speed, max_speed)
-        self.accel = accel
-        self.period = period
-        self.tolerance = tolerance
-        self.robot_accel = robot_accel
+    def __init__(self, max_speed, min_speed, accel, period, tolerance=TOLERANCE, robot_accel=0.0):
+        self.max_speed, self.min_speed = max_speed, min(min_speed, max_speed)
+        self.accel, self.period = accel, period
+        self.tolerance, self.robot_accel = tolerance, robot_accel
         # Refuse bad values now rather than on the first tick.
         approach_speed(1.0, self.max_speed, self.min_speed, accel, period)
 
@@ -226,9 +222,7 @@ class OutAndBack:
     """
 
     def __init__(self, legs, goal_distance, goal_angle, pause, drive, turn):
-        self.legs = legs
-        self._drive = drive
-        self._turn = turn
+        self.legs, self._drive, self._turn = legs, drive, turn
         leg = ((Step.DRIVE, goal_distance), (Step.PAUSE, pause),
                (Step.TURN, goal_angle), (Step.PAUSE, pause))
         self.steps = [(number, kind, goal) for number in range(1, legs + 1)
@@ -259,13 +253,17 @@ class OutAndBack:
         while self._index < len(self.steps):
             _, kind, goal = self.steps[self._index]
             if kind is Step.DRIVE:
-                command = self._drive_command(goal, pose, predicted[0], velocity[0])
+                speed = self._drive.speed(
+                    goal - (pose.distance_to(self._step_pose) + predicted[0]), velocity[0])
+                if speed is not None:
+                    return speed, 0.0
             elif kind is Step.TURN:
-                command = self._turn_command(goal, turned, predicted[1], velocity[1])
-            else:
-                command = self._pause_command(goal, now_ns)
-            if command is not None:
-                return command
+                speed = self._turn.speed(goal - (turned - self._step_turned + predicted[1]),
+                                         velocity[1])
+                if speed is not None:
+                    return 0.0, speed
+            elif (now_ns - self._step_start_ns) / 1e9 < goal - 1e-9:  # the pause goes on
+                return 0.0, 0.0
             self._next_step(now_ns, pose, turned)
         return None
 
@@ -274,19 +272,4 @@ class OutAndBack:
 
     def _next_step(self, now_ns, pose, turned):
         self._index += 1
-        self._step_start_ns = now_ns
-        self._step_pose = pose
-        self._step_turned = turned
-
-    def _drive_command(self, goal, pose, metres, speed_now):
-        speed = self._drive.speed(goal - (pose.distance_to(self._step_pose) + metres), speed_now)
-        return None if speed is None else (speed, 0.0)
-
-    def _turn_command(self, goal, turned, radians, turn_rate):
-        speed = self._turn.speed(goal - (turned - self._step_turned + radians), turn_rate)
-        return None if speed is None else (0.0, speed)
-
-    def _pause_command(self, duration, now_ns):
-        if (now_ns - self._step_start_ns) / 1e9 >= duration - 1e-9:
-            return None
-        return 0.0, 0.0
+        self._step_start_ns, self._step_pose, self._step_turned = now_ns, pose, turned

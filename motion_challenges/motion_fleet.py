@@ -39,12 +39,8 @@ from sim_diffdrive.participant import take_part
 from sim_diffdrive.runtime import destroyed_if_refused
 from sim_diffdrive.runtime import run
 
-_MOTIONS = {
-    'rotate_robot': RotateRobot,
-    'circle_back_and_forth': CircleBackAndForth,
-    'timed_out_and_back': TimedOutAndBack,
-    'odom_out_and_back': OdomOutAndBack,
-}
+_MOTIONS = {'rotate_robot': RotateRobot, 'circle_back_and_forth': CircleBackAndForth,
+            'timed_out_and_back': TimedOutAndBack, 'odom_out_and_back': OdomOutAndBack}
 
 PARAMETERS = (
     Spec('robots', [], 'Names of the robots, one motion each in its robot namespace (robot1: '
@@ -73,9 +69,8 @@ def fleet_plan(robots, motions, namespace='/'):
             raise ParameterError(f"parameter 'robots' names {robot!r} twice; got {robots!r}")
         plan[robot_ns] = robot
     if len(motions) not in (1, len(robots)):
-        raise ParameterError(
-            f"parameter 'motions' must have one motion for all robots or one per robot "
-            f'({len(robots)}); got {len(motions)}: {motions!r}')
+        raise ParameterError("parameter 'motions' must have one motion for all robots or one "
+                             f'per robot ({len(robots)}); got {len(motions)}: {motions!r}')
     for motion in motions:
         if motion not in _MOTIONS:
             raise ParameterError(f"parameter 'motions' names {motion!r}, which is not one of "
@@ -87,9 +82,8 @@ def fleet_plan(robots, motions, namespace='/'):
 
 def _robot_namespace(namespace, robot):
     if not isinstance(robot, str) or robot.startswith(('/', '~')) or not robot:
-        raise ParameterError(
-            f"parameter 'robots' takes names relative to the fleet's namespace (robot1, "
-            f'site_a/robot1); got {robot!r}')
+        raise ParameterError("parameter 'robots' takes names relative to the fleet's namespace "
+                             f'(robot1, site_a/robot1); got {robot!r}')
     robot_ns = namespace.rstrip('/') + '/' + robot
     try:
         validate_namespace(robot_ns)
@@ -134,11 +128,8 @@ def _build_motion(context, robot_ns, motion, parameter_overrides, participant):
         participant=participant,
         cli_args=['--ros-args', '-r', f'__ns:={robot_ns}', '-r', f'__node:={motion}'])
     if isinstance(node, RotateRobot):
-        try:
+        with destroyed_if_refused(node):
             _start_rotation(node)
-        except BaseException:
-            node.destroy_node()
-            raise
     return node
 
 
@@ -147,9 +138,8 @@ def _start_rotation(node):
     if node.missing_answers():
         missing = [name for name in ('angular_speed_deg', 'angle_deg', 'clockwise')
                    if getattr(p, name) is None]
-        raise ParameterError(
-            'rotate_robot asks nothing in a fleet: give ' + ', '.join(missing) + ' as '
-            'parameters (-p, or a params file section for this robot)')
+        raise ParameterError('rotate_robot asks nothing in a fleet: give ' + ', '.join(missing)
+                             + ' as parameters (-p, or a params file section for this robot)')
     node.start(RotationRequest(p.angular_speed_deg, p.angle_deg, p.clockwise))
 
 
@@ -165,8 +155,7 @@ class MotionFleet(Node):
         super().__init__('motion_fleet', **kwargs)
         with destroyed_if_refused(self):
             self.params = declare(self, PARAMETERS)
-            self.plan = fleet_plan(self.params.robots, self.params.motions,
-                                   self.get_namespace())
+            self.plan = fleet_plan(self.params.robots, self.params.motions, self.get_namespace())
         self.motions = []
         # On sim time the fleet is one participant of the lockstep: one answer per step for
         # all its motions, not one each (each costs the simulator a message and a look).
@@ -208,10 +197,9 @@ class MotionFleet(Node):
         unheard[:0] = [f'the {what} of {", ".join(robots)}' for what, robots in (
             ('final stop', stops), ('lockstep goodbye', goodbyes)) if robots]
         if unheard:
-            self.get_logger().warning(
-                f'Not acknowledged within {MotionNode.stop_ack_timeout:g} s: '
-                f'{" and ".join(unheard)} (a subscriber is gone or stalled, or the link is '
-                'lossy)')
+            self.get_logger().warning(f'Not acknowledged within {MotionNode.stop_ack_timeout:g} '
+                                      f's: {" and ".join(unheard)} (a subscriber is gone or '
+                                      'stalled, or the link is lossy)')
         ended = [f'{robot} {motion}: '
                  + (f'exit code {node.exit_code}' if node.done else 'stopped before the end')
                  for (robot, _, motion), node in zip(self.plan, self.motions)]
@@ -231,11 +219,8 @@ class MotionFleet(Node):
 def make_fleet():
     """Build the fleet node and its motions; return them all, the fleet node last."""
     fleet = MotionFleet()
-    try:
+    with destroyed_if_refused(fleet):
         motions = fleet.build()
-    except BaseException:
-        fleet.destroy_node()
-        raise
     # Last, so that its shutdown_hook runs after every motion has published its final stop.
     return [*motions, fleet]
 

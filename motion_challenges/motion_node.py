@@ -86,22 +86,16 @@ class MotionNode(Node):
         # As bytes: rclpy's Odometry object costs about 100 us a message, a motion needs five
         # numbers of it (OdomPose).
         self.create_subscription(Odometry, 'odom', self.watch.on_odom, 50, raw=True)
-        self.odom = None
         self._progress_log = Throttle(1.0)  # a progress line a second
         self.run_odoms = []  # the OdomPose of each odometry while running or settling
         self.sent_commands = []  # for plot_file: (time_ns, linear, angular) of each command
-        self.start_odom = None
         self.turned = YawAccumulator()
         self.commands = CommandLog()
         self._standstill = Standstill()
         self.state = MotionState.WAITING
-        self.done = False
-        self.exit_code = None
-        self.start_ns = None
-        self._stop_ns = None
-        self._wall_begun = None
-        self._primed = False
-        self._tick_timer = None
+        self.done = self._primed = False
+        self.odom = self.start_odom = self.exit_code = self.start_ns = None
+        self._stop_ns = self._wall_begun = self._tick_timer = None
         # Waiting is timed on the wall clock: on sim time, node timers do not fire until the
         # simulator publishes /clock, and a missing simulator is exactly what to report.
         self._watchdog = self.create_timer(WATCHDOG_PERIOD_S, self.watch.on_watchdog,

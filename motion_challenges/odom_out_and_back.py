@@ -19,8 +19,8 @@ import math
 from motion_challenges.controllers import Approach
 from motion_challenges.controllers import OutAndBack
 from motion_challenges.motion_node import MotionNode
-from motion_challenges.plans import out_and_back_end
 from motion_challenges.specs import out_and_back_specs
+from motion_challenges.timed_out_and_back import TimedOutAndBack
 from sim_diffdrive.parameters import Spec
 from sim_diffdrive.runtime import run
 
@@ -46,6 +46,7 @@ class OdomOutAndBack(MotionNode):
     """Out and back closed loop on odometry."""
 
     needs_odom = True
+    goal_pose = TimedOutAndBack.goal_pose  # the same legs, so the same end
 
     def __init__(self, **kwargs):
         super().__init__('odom_out_and_back', PARAMETERS, **kwargs)
@@ -70,11 +71,6 @@ class OdomOutAndBack(MotionNode):
         if command is not None:
             self.progress(f'Leg {self.legs.leg} of {self.params.legs}: {self.legs.step.value}')
         return command
-
-    def goal_pose(self, start):
-        p = self.params
-        return out_and_back_end((start.x, start.y, start.yaw), p.goal_distance, p.goal_angle,
-                                p.legs)
 
 
 def main(args=None):

@@ -160,9 +160,7 @@ def circle_plan(linear_speed, angular_speed, half_period, cycles):
         raise ValueError(f'cycles must be a non-negative integer, got {cycles!r}')
     there = Segment(linear_speed, angular_speed, half_period)
     back = Segment(-linear_speed, -angular_speed, half_period)
-    if cycles == 0:
-        return PiecewisePlan([there, back], repeat=True)
-    return PiecewisePlan([there, back] * cycles)
+    return PiecewisePlan([there, back] * (cycles or 1), repeat=cycles == 0)
 
 
 def out_and_back_plan(goal_distance, linear_speed, goal_angle, angular_speed, legs,
@@ -202,8 +200,7 @@ def out_and_back_end(start, goal_distance, goal_angle, legs):
     return x, y, yaw
 
 
-def approach_speed(remaining, max_speed, min_speed, accel, period, robot_accel=0.0,
-                   velocity=0.0):
+def approach_speed(remaining, max_speed, min_speed, accel, period, robot_accel=0.0, velocity=0.0):
     """
     Return the speed for a closed-loop motion with remaining distance or angle to go.
 
@@ -221,9 +218,8 @@ def approach_speed(remaining, max_speed, min_speed, accel, period, robot_accel=0
     if remaining <= 0.0:
         return 0.0
     speed = min(max(math.sqrt(2.0 * accel * remaining), min_speed), max_speed)
-    if robot_accel > 0.0:
-        return min(speed, stopping_speed(remaining, velocity, robot_accel, period))
-    return min(speed, remaining / period)
+    return min(speed, stopping_speed(remaining, velocity, robot_accel, period)
+               if robot_accel > 0.0 else remaining / period)
 
 
 def speed_ramp(velocity, target, accel, dt):

@@ -71,16 +71,13 @@ def step_series(times, values, end=None):
     """
     xs, ys = [], []
     for t, value in zip(times, values):
-        if ys and value == ys[-1]:
-            continue
-        if ys:
-            xs.append(t)
-            ys.append(ys[-1])
-        xs.append(t)
-        ys.append(value)
+        if not ys:
+            xs, ys = [t], [value]
+        elif value != ys[-1]:
+            xs += [t, t]
+            ys += [ys[-1], value]
     if ys and end is not None and end > xs[-1]:
-        xs.append(end)
-        ys.append(ys[-1])
+        xs, ys = xs + [end], ys + [ys[-1]]
     return xs, ys
 
 
@@ -96,8 +93,7 @@ def time_series(odometry, commands=(), start_ns=None, goal_yaw=None):
     odometry = sorted(odometry, key=lambda sample: sample[0])
     commands = sorted(commands, key=lambda command: command[0])
     if start_ns is None:
-        firsts = [samples[0][0] for samples in (odometry, commands) if samples]
-        start_ns = min(firsts) if firsts else 0
+        start_ns = min((samples[0][0] for samples in (odometry, commands) if samples), default=0)
     t = [(stamp - start_ns) / _NS for stamp, *_ in odometry]
     heading = unwrap_deg([yaw for _, yaw, _, _ in odometry])
     command_t = [(stamp - start_ns) / _NS for stamp, *_ in commands]
@@ -108,37 +104,30 @@ def time_series(odometry, commands=(), start_ns=None, goal_yaw=None):
         if heading:
             goal_deg = heading[-1] + math.degrees(
                 math.remainder(goal_yaw - math.radians(heading[-1]), 2.0 * math.pi))
-    return RunSeries(
-        t, heading, [v for _, _, v, _ in odometry],
-        [math.degrees(w) for _, _, _, w in odometry],
-        step_series(command_t, [v for _, v, _ in commands], end),
-        step_series(command_t, [math.degrees(w) for _, _, w in commands], end),
-        goal_deg)
-
-
-def _arrow(axes, pose, size, color, label, marker):
-    x, y, yaw = pose
-    axes.annotate('', xy=(x + size * math.cos(yaw), y + size * math.sin(yaw)), xytext=(x, y),
-                  arrowprops=dict(_ARROW_STYLE[label], arrowstyle='-|>', color=color,
-                                  shrinkA=0, shrinkB=0))
-    # Hollow markers of different sizes keep a goal visible under an end that hit it.
-    axes.plot([x], [y], marker, color=color, markerfacecolor='none',
-              markersize=_MARKER_SIZE[marker], markeredgewidth=2, label=label)
+    return RunSeries(t, heading, [v for _, _, v, _ in odometry],
+                     [math.degrees(w) for _, _, _, w in odometry],
+                     step_series(command_t, [v for _, v, _ in commands], end),
+                     step_series(command_t, [math.degrees(w) for _, _, w in commands], end),
+                     goal_deg)
 
 
 def draw_run(axes, trajectory, start=None, end=None, goal=None, title='', legend=True):
     """Draw a trajectory [(x, y, yaw), ...] with start, end and goal poses on axes."""
     xs, ys = [p[0] for p in trajectory], [p[1] for p in trajectory]
     axes.plot(xs, ys, '-', color='tab:blue', lw=1.5, label='driven (odometry)')
-    poses = [(pose, color, label, marker) for pose, color, label, marker in (
-        (goal, 'tab:orange', 'goal', 's'), (start, 'tab:green', 'start', 'D'),
-        (end, 'tab:red', 'end', 'o')) if pose is not None]
+    poses = [p for p in ((goal, 'tab:orange', 'goal', 's'), (start, 'tab:green', 'start', 'D'),
+                         (end, 'tab:red', 'end', 'o')) if p[0] is not None]
     px = xs + [pose[0] for pose, *_ in poses] or [0.0]
     py = ys + [pose[1] for pose, *_ in poses] or [0.0]
     span = max(max(px) - min(px), max(py) - min(py))
     size = max(_ARROW * span, _MIN_ARROW)
-    for pose, color, label, marker in poses:
-        _arrow(axes, pose, size, color, label, marker)
+    for (x, y, yaw), color, label, marker in poses:
+        axes.annotate('', xy=(x + size * math.cos(yaw), y + size * math.sin(yaw)), xytext=(x, y),
+                      arrowprops=dict(_ARROW_STYLE[label], arrowstyle='-|>', color=color,
+                                      shrinkA=0, shrinkB=0))
+        # Hollow markers of different sizes keep a goal visible under an end that hit it.
+        axes.plot([x], [y], marker, color=color, markerfacecolor='none',
+                  markersize=_MARKER_SIZE[marker], markeredgewidth=2, label=label)
     # Arrows do not count in matplotlib's limits: the view holds their tips, and a minimum.
     px += [x + size * math.cos(yaw) for (x, _, yaw), *_ in poses]
     py += [y + size * math.sin(yaw) for (_, y, yaw), *_ in poses]
@@ -149,8 +138,7 @@ def draw_run(axes, trajectory, start=None, end=None, goal=None, title='', legend
     axes.update_datalim(list(zip(*corners)))
     axes.autoscale_view()
     axes.set_aspect('equal', adjustable='datalim')
-    axes.set_xlabel('x [m]')
-    axes.set_ylabel('y [m]')
+    axes.set(xlabel='x [m]', ylabel='y [m]')
     axes.grid(True, alpha=0.3)
     if legend:
         axes.legend(loc='best', fontsize='small')
@@ -167,8 +155,7 @@ def draw_series(heading_axes, linear_axes, angular_axes, series, legend=True):
         heading_axes.axhline(series.goal_heading_deg, **_GOAL)
     heading_axes.set_ylabel('heading [deg]')
     # Multiples of 45 or 90 deg for turns; matplotlib's choice for a small wobble.
-    values = series.heading_deg + [series.goal_heading_deg] * (
-        series.goal_heading_deg is not None)
+    values = series.heading_deg + [series.goal_heading_deg] * (series.goal_heading_deg is not None)
     if values and max(values) - min(values) > 30.0:
         step = next((s for s in _HEADING_STEPS if (max(values) - min(values)) / s <= 7.0),
                     _HEADING_STEPS[-1])
@@ -228,10 +215,9 @@ def write_plot(node, end_odom, achieved):
     try:
         plot_run(plot_file, node.trajectory,
                  start=(start.x, start.y, start.yaw) if start else None,
-                 end=(end_odom.x, end_odom.y, end_odom.yaw) if end_odom else None,
-                 goal=goal, title=f'{node.get_name()}: {achieved}',
-                 series=time_series(odometry, node.sent_commands, node.start_ns,
-                                    goal[2] if goal else None))
+                 end=(end_odom.x, end_odom.y, end_odom.yaw) if end_odom else None, goal=goal,
+                 title=f'{node.get_name()}: {achieved}', series=time_series(
+                     odometry, node.sent_commands, node.start_ns, goal[2] if goal else None))
     except (ImportError, OSError) as error:
         node.get_logger().error(f'Could not write plot_file: {error}')
         return

@@ -45,10 +45,8 @@ class RotationRequest:
 
 def _shown(text):
     text = text.strip()
-    if len(text) > _MAX_SHOWN:
-        text = text[:_MAX_SHOWN] + '...'
     # repr() escapes control characters, so garbage cannot drive the terminal.
-    return repr(text)
+    return repr(text[:_MAX_SHOWN] + '...' if len(text) > _MAX_SHOWN else text)
 
 
 def _accepted(what, max_value):

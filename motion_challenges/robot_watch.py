@@ -77,10 +77,8 @@ class RobotWatch:
     """
 
     def __init__(self, node, odom_topic, use_odom, distrust):
-        self._node = node
-        self._odom_topic = odom_topic
-        self._use_odom = use_odom
-        self._distrust = distrust
+        self._node, self._odom_topic = node, odom_topic
+        self._use_odom, self._distrust = use_odom, distrust
         self._waiting_log = Throttle(2.0)
         self._odom_wall = None  # when odometry last came [s, monotonic]
         self._wall_start = None  # set by start()
@@ -170,8 +168,7 @@ class RobotWatch:
         node = self._node
         publishers = node.get_publishers_info_by_topic(self._odom_topic)
         subscribers = node.get_subscriptions_info_by_topic(node.cmd_pub.topic_name)
-        robots = set(node_names(publishers)) & set(node_names(subscribers))
-        return min(robots) if robots else None
+        return min(set(node_names(publishers)) & set(node_names(subscribers)), default=None)
 
     def dropped_mid_run(self):
         """Fail, stopping the robot, once the simulator has gone on without this node."""

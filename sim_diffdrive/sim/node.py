@@ -65,10 +65,9 @@ PARAMETERS = (
     Spec('base_frame_id', DEFAULT_FRAMES['base_frame_id'],
          'Child frame of the odometry (REP 105).', live=True),
     Spec('publish_tf', True, 'Publish odom_frame_id -> base_frame_id on /tf with each odometry.'),
-    Spec('initial_x', 0.0, 'Start position x in the odom frame [m]; a change takes effect at '
-         'the next ~/reset.', low=-_POSITION_LIMIT, high=_POSITION_LIMIT, live=True),
-    Spec('initial_y', 0.0, 'Start position y in the odom frame [m]; a change takes effect at '
-         'the next ~/reset.', low=-_POSITION_LIMIT, high=_POSITION_LIMIT, live=True),
+    *(Spec(f'initial_{axis}', 0.0, f'Start position {axis} in the odom frame [m]; a change takes '
+           'effect at the next ~/reset.', low=-_POSITION_LIMIT, high=_POSITION_LIMIT, live=True)
+      for axis in 'xy'),
     Spec('initial_yaw', 0.0, 'Start heading in the odom frame [rad], counter-clockwise from x; '
          'a change takes effect at the next ~/reset.', low=-100.0, high=100.0, live=True),
     *(Spec(name, 0.0, f'Largest {what}; 0 = unlimited.', low=0.0, high=1000.0, live=True)
@@ -221,12 +220,10 @@ class UnicycleSim(Node):
                 logger.warning(
                     f'{label}No cmd_vel for {self.params.cmd_vel_timeout:g} s: stopping the '
                     f'robot (the last came at {data // _NS}.{data % _NS:09d} s)')
-            elif kind == 'wall':
-                logger.warning(f'{label}Hit a wall at ({data[0]:.3f}, {data[1]:.3f}) in '
-                               f'{self.surroundings.map_frame}: stopped')
-            else:
-                other = self.robots[data[0]].name or 'another robot'
-                logger.warning(f'{label}Ran into {other} at ({data[1]:.3f}, {data[2]:.3f}) in '
+            else:  # a contact: data is (x, y) in the map, or for a robot (other, x, y)
+                what = ('Hit a wall' if kind == 'wall'
+                        else f'Ran into {self.robots[data[0]].name or "another robot"}')
+                logger.warning(f'{label}{what} at ({data[-2]:.3f}, {data[-1]:.3f}) in '
                                f'{self.surroundings.map_frame}: stopped')
 
     # -- parameters and reset ---------------------------------------------------------------

@@ -87,16 +87,17 @@ def _unusable(frame):
 
 class OdomTransform:
     """
-    Publish each robot's odometry as the transform frame_id -> child_frame_id on /tf.
+    Publish a transform frame_id -> child_frame_id per robot on /tf: its odometry, map -> odom.
 
     One TFMessage carries every robot's transform, its bytes laid out once for ``frames``,
     (frame_id, child_frame_id) per robot (cdr.TransformLayout; ``set_frames()`` again when
     they change), as rclpy's serialization of it would cost as much as the odometry.
     """
 
-    def __init__(self, node, frames):
+    def __init__(self, node, frames=None):
         self.publisher = node.create_publisher(TFMessage, TF_TOPIC, TF_QOS)
-        self.set_frames(frames)
+        if frames is not None:  # else set_frames() before the first publish()
+            self.set_frames(frames)
 
     def set_frames(self, frames):
         """Lay the bytes out anew for frames, (frame_id, child_frame_id) per robot."""

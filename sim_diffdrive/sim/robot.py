@@ -65,16 +65,11 @@ class Robot:
     """
 
     def __init__(self, sim, index, name, on_placed, on_command):
-        self.world = sim.world
-        self.clock = sim.clock
-        self.taps = sim.taps
-        self.params = sim.params
+        self.world, self.clock, self.taps, self.params = sim.world, sim.clock, sim.taps, sim.params
         self.logger = sim.get_logger()
         self._namespace = sim.get_namespace()
         self._map_frame = sim.surroundings.map_frame if sim.surroundings else None
-        self._on_placed = on_placed
-        self.index = index
-        self.name = name
+        self.index, self.name, self._on_placed = index, name, on_placed
         self._warned_publishers = self._warned_type = False
         # How many publishers' commands reach cmd_vel, as DDS last said (its matched event).
         self.cmd_publishers = 0
@@ -112,8 +107,7 @@ class Robot:
 
     def on_initial_pose(self, msg):
         """Set the robot down at the pose given (in its odometry frame or the map), at rest."""
-        frame = self.odom_frame
-        map_frame = self._map_frame
+        frame, map_frame = self.odom_frame, self._map_frame
         given = msg.header.frame_id.lstrip('/')
         p = msg.pose.pose
         values = (p.position.x, p.position.y, p.orientation.x, p.orientation.y,

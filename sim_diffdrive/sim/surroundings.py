@@ -30,13 +30,11 @@ from rclpy.qos import QoSProfile
 from rclpy.time import Time
 from sensor_msgs.msg import LaserScan
 from sim_diffdrive.angles import quaternion_from_yaw
-from sim_diffdrive.cdr import TransformLayout
 from sim_diffdrive.parameters import ParameterError
 from sim_diffdrive.parameters import Spec
 from sim_diffdrive.sim.odom_tf import namespaced_frame
+from sim_diffdrive.sim.odom_tf import OdomTransform
 from sim_diffdrive.sim.odom_tf import resolve_frame
-from sim_diffdrive.sim.odom_tf import TF_QOS
-from sim_diffdrive.sim.odom_tf import TF_TOPIC
 from sim_diffdrive.world.contact import Walls
 from sim_diffdrive.world.grid import load_map
 from sim_diffdrive.world.grid import MapError
@@ -113,8 +111,7 @@ class Surroundings:
         self._scan_frames = [namespaced_frame(name, scan_frame) for name in names]
         self._map_pub = node.create_publisher(OccupancyGrid, 'map', LATCHED_QOS)
         self._static_pub = node.create_publisher(TFMessage, '/tf_static', LATCHED_QOS)
-        self._tf_pub = node.create_publisher(TFMessage, TF_TOPIC, TF_QOS)
-        self._map_layout = None
+        self._map_tf = OdomTransform(node)  # map -> odom, laid out by start()
 
     def start(self, frames, stamp_ns, taps=None):
         """Publish (and tap) the map and base -> scan (frames: (odom, base) per robot)."""
@@ -133,7 +130,7 @@ class Surroundings:
 
     def set_frames(self, frames):
         """Lay map -> odom out anew for frames, (odom, base) per robot."""
-        self._map_layout = TransformLayout([(self.map_frame, odom) for odom, _ in frames])
+        self._map_tf.set_frames((self.map_frame, odom) for odom, _ in frames)
 
     def map_message(self, stamp_ns):
         """Return the map as a nav_msgs/OccupancyGrid stamped stamp_ns."""
@@ -152,14 +149,14 @@ class Surroundings:
 
     def publish(self, stamp_ns, world, taps):
         """Publish map -> odom with this step's odometry, and the scans when they are due."""
-        if taps or self._tf_pub.get_subscription_count():  # only while someone listens
+        tf_pub = self._map_tf.publisher
+        if taps or tf_pub.get_subscription_count():  # only while someone listens
             sec, nanosec = divmod(stamp_ns, _NS)
             half = 0.5 * world.map_yaw
-            data = self._map_layout.serialize(sec, nanosec, world.map_x, world.map_y,
-                                              np.sin(half), np.cos(half))
-            self._tf_pub.publish(data)
+            data = self._map_tf.publish(sec, nanosec, world.map_x, world.map_y, np.sin(half),
+                                        np.cos(half))
             if taps:
-                taps.write(self._tf_pub.topic_name, data, stamp_ns)
+                taps.write(tf_pub.topic_name, data, stamp_ns)
         due = self._scan_every and self._steps % self._scan_every == 0
         self._steps += 1
         if not due:

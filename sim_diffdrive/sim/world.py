@@ -102,8 +102,7 @@ class World:
         self.events = []
         # While a step of solid robots runs: per robot that moves, its pose where it began to
         # move and its arcs, timed from _begin_ns (see _collide).
-        self._drives = None
-        self._begin_ns = 0
+        self._drives, self._begin_ns = None, 0
         if walls is not None:
             for i in range(n):
                 self._check_place(i, *self._to_map(i, self.x[i], self.y[i], self.yaw[i]))

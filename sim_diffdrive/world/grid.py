@@ -104,9 +104,7 @@ class GridMap:
         gx, gy = self.to_grid(x, y)
         col = math.floor(gx / self.resolution) if math.isfinite(gx) else -1
         row = math.floor(gy / self.resolution) if math.isfinite(gy) else -1
-        if 0 <= row < self.height and 0 <= col < self.width:
-            return row, col
-        return None
+        return (row, col) if 0 <= row < self.height and 0 <= col < self.width else None
 
     @classmethod
     def from_rows(cls, rows, resolution=0.05, origin=(0.0, 0.0, 0.0)):
@@ -208,9 +206,7 @@ def _quanta(img):
     pixels = np.asarray(img, dtype=np.float64) * (MAX_QUANTUM / 255.0)
     if pixels.ndim == 2:
         pixels = pixels[:, :, np.newaxis]
-    if has_alpha:
-        return pixels[:, :, :-1], pixels[:, :, -1]
-    return pixels, None
+    return (pixels[:, :, :-1], pixels[:, :, -1]) if has_alpha else (pixels, None)
 
 
 def _cells(channels, alpha, mode, negate, free, occupied):

@@ -55,8 +55,7 @@ def cast(grid, x, y, yaw, angles, range_max, radius=0.0, discs=True, padded=None
         gx, gy = grid.to_grid(x, y)
         gx, gy = np.repeat(gx, angles.size), np.repeat(gy, angles.size)
         theta = ((yaw[:, np.newaxis] + angles) - grid.origin[2]).ravel()
-        if padded is None:
-            padded = pad_solid(grid)
+        padded = pad_solid(grid) if padded is None else padded
         crossings = math.ceil(range_max / grid.resolution) + 2
         cells = ranges.reshape(-1)
         size = BATCH * min(RAYS, cells.size)

@@ -58,23 +58,16 @@ def earliest_touch(tracks, radius, touched):
     apart = np.hypot(x[:, None] - x[None, :], y[:, None] - y[None, :])
     near = apart - (moved[:, None] + moved[None, :]) <= 2.0 * radius + 1e-9
     near &= (moved[:, None] + moved[None, :]) > 0.0
-    first = None
-    rows, columns = np.nonzero(np.triu(near, 1))
-    for i, j in zip(rows.tolist(), columns.tolist()):
-        if (i, j) in touched:
-            continue
-        at = touch(tracks[i], tracks[j], radius)
-        if at is not None and (first is None or at < first[0]):
-            first = (at, i, j)
-    return first
+    rows, columns = np.nonzero(np.triu(near, 1))  # (i, j) in order: a tie goes to the first
+    touches = ((touch(tracks[i], tracks[j], radius), i, j)
+               for i, j in zip(rows.tolist(), columns.tolist()) if (i, j) not in touched)
+    return min((found for found in touches if found[0] is not None), default=None)
 
 
 def touch(a, b, radius):
     """Return the first time [s] tracks a and b come two radii apart, closing in, or None."""
-    edges = sorted({0.0, *a.bounds(), *b.bounds()})
+    edges = sorted({0.0, *a.bounds(), *b.bounds()})  # distinct: each span is longer than 0
     for begin, end in zip(edges, edges[1:]):
-        if end <= begin:
-            continue
         at = robot_contact(radius, a.at(begin), b.at(begin), end - begin)
         if at is not None:
             return begin + at
