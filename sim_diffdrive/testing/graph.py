@@ -74,6 +74,7 @@ class Lockstep:
         # No member is ever dropped here: no owner to spare (see StepLedger.drop).
         self.ledger = StepLedger(None)
         self._answers = {}  # node -> its answer in the ledger
+        self._counters = {}  # node -> its MessageCounter (counted from discovery on)
         self._ids = itertools.count()  # a removed node's id stays taken (its goodbye is final)
         self._discovered = False
 
@@ -101,6 +102,7 @@ class Lockstep:
         if node is self.clock_owner:
             self.clock_owner = None
         node.destroy_node()
+        self._counters.pop(node, None)
         answer = self._answers.pop(node, None)
         if answer is not None:  # a goodbye: what it sent is still waited for, not what it hears
             answer.leaving = True
@@ -145,7 +147,8 @@ class Lockstep:
         # Count traffic from here on: what was sent before the nodes matched may never arrive.
         now_ns = self._now_ns()
         for node in self.nodes:
-            counter = MessageCounter.of(node, clock_topic(node), fixed=True)
+            counter = self._counters[node] = MessageCounter.of(node, clock_topic(node),
+                                                               fixed=True)
             counter.wrap_new()  # entities made since it was last looked at
             answer = self._answers.get(node)
             if answer is None:  # it joins
@@ -161,9 +164,13 @@ class Lockstep:
         # The nodes first: while a step settles, a node yet to take its /clock or run a due
         # timer is found at a glance, where the ledger weighs every member's every topic (and
         # counts the caught-up members in, once nothing is owed).
+        counters = self._counters
         for node in self.nodes:
             if node is self.clock_owner:
                 continue
+            counter = counters.get(node)
+            if counter is not None and counter.clock_ns not in (None, now_ns):
+                return False  # it has yet to take this step's /clock: seen without rclpy
             clock = node.get_clock()  # on sim time (use_sim_time) while ROS time is active
             if clock.ros_time_is_active and clock.now().nanoseconds != now_ns:
                 return False
@@ -201,15 +208,16 @@ class Lockstep:
 
     def _settle(self, predicate, timeout, poll=0.01):
         """Spin until predicate() is true; False after timeout [s, wall] of waiting for it."""
-        deadline = time.monotonic() + timeout
+        now = time.monotonic()
+        deadline = now + timeout
         while not predicate():
-            start = time.monotonic()
-            if start > deadline:
+            if now > deadline:
                 return False
             self.executor.spin_once(timeout_sec=poll)
             # A callback that ran past the poll (a motion drawing its plot_file as it ends)
             # kept the graph busy, not waiting: the timeout is for what never comes.
-            deadline += max(0.0, time.monotonic() - start - poll)
+            start, now = now, time.monotonic()
+            deadline += max(0.0, now - start - poll)
         return True
 
     def step_until(self, predicate, sim_timeout):
