@@ -166,6 +166,8 @@ def test_quick_run_writes_every_row(tmp_path):
     assert original[0] == pytest.approx(29.939, abs=1e-3)
     assert max(rows['rotate_odom']['project_errors_deg']) < 1e-6
     assert rows['rtf_in_process']['events_identical'] is True
+    assert rows['rtf_in_process']['step_package_calls'] > 0  # counted, not NaN
+    assert rows['rtf_in_process']['step_calls'] > rows['rtf_in_process']['step_package_calls']
     assert rows['out_and_back_closure']['rbx1_mm'] == pytest.approx(1.593, abs=1e-3)
     assert rows['integration_error']['arc_max_m'] < 1e-8
     assert rows['scan_cast']['fleet_cast_s'] < rows['scan_cast']['fleet_loop_s']

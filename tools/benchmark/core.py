@@ -53,6 +53,7 @@ SIZES = {  # each: (make bench, --quick)
     'fleet_motion_robots': (16, 1),  # robots_processes[-1]: row 17 reuses row 12's pairs
     'fleet_idle_robots': (1024, 4),  # row 18: the largest idle fleet (quick: row 13's)
     'scan_repeats': (5, 1),  # row 20: casts timed, best of
+    'call_steps': (200, 20),  # row 6: steps whose calls are counted
     'ping_pongs': ((2000, 200), (100, 20)),  # row 7's reference: round trips, warm-ups
 }
 ROWS = {}  # key -> (group, function(run) -> Row), in table order

@@ -18,6 +18,7 @@ from contextlib import contextmanager
 from dataclasses import astuple
 import math
 import os
+import sys
 import time
 from unittest import mock
 
@@ -223,6 +224,37 @@ def integration_error(run):
         'mid-lap; the exact arc stays at rounding level.', data={'ratio_max': ratio, **e})
 
 
+PACKAGES = ('/sim_diffdrive/', '/motion_challenges/')
+
+
+def step_calls(run):
+    """
+    Return what one in-process lockstep step calls: (all, the package's, its modules).
+
+    A SimGraph stepping a simulator with timed_out_and_back, over ``call_steps`` steps once it
+    moves; every Python and C call counted (sys.setprofile), so the figure is the same on any
+    machine and at any load: the work a step does, where its CPU time is not.
+    """
+    steps, counts, modules = run.sizes.call_steps, [0, 0], set()
+
+    def count(frame, event, arg):
+        if event in ('call', 'c_call'):
+            counts[0] += 1
+            path = frame.f_code.co_filename
+            if event == 'call' and any(package in path for package in PACKAGES):
+                counts[1] += 1
+                modules.add(path)
+    with lockstep_graph() as graph:
+        graph.node(TimedOutAndBack, legs=4)
+        graph.step(50)  # it primes its connection and starts
+        sys.setprofile(count)
+        try:
+            graph.step(steps)
+        finally:
+            sys.setprofile(None)
+    return counts[0] / steps, counts[1] / steps, len(modules)
+
+
 @row('rtf')
 def rtf_in_process(run):
     rtf, same, text = {}, {}, {}
@@ -232,13 +264,19 @@ def rtf_in_process(run):
         same[executor] = all(a[1] == b[1] for a, b in runs.values())
         text[executor] = (', '.join(f'{m} {x:.1f}x' for m, x in rtf[executor].items())
                           + f'; identical: {"yes" if same[executor] else "no"}')
+    calls, package_calls, modules = run.once(step_calls)
     return Row(
         'real-time factor in one process (sim s / wall s), lockstep',
-        f'EventsExecutor: {text["events"]}', f'SingleThreadedExecutor: {text["single_threaded"]}',
+        f'EventsExecutor: {text["events"]}', f'SingleThreadedExecutor: {text["single_threaded"]}'
+        f'; a step (timed out-and-back) makes {calls:.0f} calls, {package_calls:.0f} of them '
+        f"the package's, in {modules} modules",
         'rotate 90 timed, circle 1 cycle, timed out-and-back, two runs each, the 50 Hz simulator '
         'stepped in lockstep. Identical: the final poses equal to the bit. Target on '
-        'EventsExecutor (the executables use it).', f'>= {core.TARGET_RTF_IN_PROCESS:g}x',
+        'EventsExecutor (the executables use it). Calls: every Python and C call of '
+        f'{run.sizes.call_steps} steps (sys.setprofile), per step; the same on any machine.',
+        f'>= {core.TARGET_RTF_IN_PROCESS:g}x',
         min(rtf['events'].values()) >= core.TARGET_RTF_IN_PROCESS,
         {'events_rtf': rtf['events'], 'single_threaded_rtf': rtf['single_threaded'],
          'events_identical': same['events'],
-         'single_threaded_identical': same['single_threaded']})
+         'single_threaded_identical': same['single_threaded'], 'step_calls': calls,
+         'step_package_calls': package_calls, 'step_modules': modules})
