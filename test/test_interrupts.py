@@ -40,6 +40,7 @@ from sim_diffdrive.harness import pose_of
 from sim_diffdrive.harness import ros_params
 from sim_diffdrive.harness import stamp_s
 from sim_diffdrive.harness import twist_of as twist
+from sim_diffdrive.participant import take_part
 from sim_diffdrive.sim.node import UnicycleSim
 
 # Simulated seconds per wall second, and simulator steps per simulated second: a step every
@@ -60,10 +61,20 @@ def ros_args(namespace, *params, sim_time=False):
                       sim_time=sim_time)
 
 
-def watch(graph, namespace, **kwargs):
-    """Add a listening probe in namespace (wall time; arrival times recorded)."""
+def watch(graph, namespace, sim_time=False, **kwargs):
+    """
+    Add a listening probe in namespace (arrival times recorded), on wall time.
+
+    On sim time it takes part in the simulator's lockstep: the simulator waits for it to hear
+    each step's odometry, so a busy test process never sees the robot seconds late.
+    """
     kwargs.setdefault('name', 'fault_watcher')
-    return graph.probe(namespace=namespace, use_sim_time=False, listen_only=True, **kwargs)
+    if not sim_time:
+        return graph.probe(namespace=namespace, use_sim_time=False, listen_only=True, **kwargs)
+    probe = graph.probe(namespace=namespace, listen_only=True,
+                        cli_args=['--ros-args', '-r', f'/clock:={namespace}/clock'], **kwargs)
+    take_part(probe)
+    return probe
 
 
 def odoms_with_walls(watcher):
@@ -437,7 +448,10 @@ def test_simulator_restarted_mid_motion_is_noticed(graph, procs):
     for case in cases:
         namespace = f'{_PREFIX}_{case.name}'
         case.sim_proc = procs(f'{case.name}_sim', *sim_command(case))
-        case.watcher = watch(graph, namespace)
+        # On sim time the watcher takes part in the lockstep: in a busy suite a wall-time one
+        # fell so far behind that it saw the robot mid-motion only after the motion had
+        # ended (at real_time_factor 4), and the simulator was killed too late.
+        case.watcher = watch(graph, namespace, sim_time=case.sim_time)
         name, params = MOTIONS[case.motion]
         # A restart is told by the odometry it sends, not by a gap: the gap check (odom_timeout)
         # is what the case without a restart shows.
