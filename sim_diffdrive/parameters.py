@@ -83,10 +83,14 @@ class Spec:
         return descriptor
 
     def constraints(self):
-        return '; '.join(filter(None, (
-            self.length is not None and f'{self.length} values',
-            self.high is not None and self._interval(),
-            self.choices and 'one of ' + ', '.join(self.choices))))
+        parts = []
+        if self.length is not None:
+            parts.append(f'{self.length} values')
+        if self.high is not None:
+            parts.append(self._interval())
+        if self.choices:
+            parts.append('one of ' + ', '.join(self.choices))
+        return '; '.join(parts)
 
     def check(self, value):
         """Return value converted to this parameter's type, or raise ParameterError."""
