@@ -130,7 +130,5 @@ def test_a_callback_longer_than_the_timeout_is_no_stall_but_a_member_that_never_
     # A member that never answers the step still stops it, after the timeout of waiting.
     ghost = Answer('ghost#1', '/ghost', graph.now_ns)
     graph.ledger.receive(ghost, graph.now_ns)
-    started = time.monotonic()
     with pytest.raises(RuntimeError, match='graph did not settle'):
         graph.step(timeout=0.3)
-    assert time.monotonic() - started < 5.0
