@@ -38,7 +38,11 @@ def closing_for(sim_s, wall_s, achieved, measured, wait_for_odom):
 
 def closing_line(output):
     """Return a motion's closing line ('Done in ...') from its output, or its last error line."""
-    lines = output.splitlines()[::-1]  # from the last line back
-    return next((line for line in lines if DONE in line),
-                next((line for line in lines if '[ERROR]' in line or 'Error' in line),
-                     lines[0] if lines else ''))
+    lines = output.splitlines()
+    for line in reversed(lines):
+        if DONE in line:
+            return line
+    for line in reversed(lines):
+        if '[ERROR]' in line or 'Error' in line:
+            return line
+    return lines[-1] if lines else ''
