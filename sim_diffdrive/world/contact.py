@@ -205,7 +205,9 @@ class Walls:
                             best, feature = t, (cx, cy)
             if best <= end:
                 break
-        return None if best > dt else 0.0 if best < 0.0 else self._refine(path, best, feature)
+        if best > dt:
+            return None
+        return 0.0 if best < 0.0 else self._refine(path, best, feature)
 
     def _face(self, path, col, pos, lo, hi):
         """Return the entry time through a face pushed out to pos (-1.0: at once; inf: never)."""

@@ -68,9 +68,10 @@ class GridMap:
         solid = data == OCCUPIED
         data.setflags(write=False)
         solid.setflags(write=False)
-        for name, value in (('resolution', resolution), ('origin', origin), ('data', data),
-                            ('solid', solid)):
-            object.__setattr__(self, name, value)
+        object.__setattr__(self, 'resolution', resolution)
+        object.__setattr__(self, 'origin', origin)
+        object.__setattr__(self, 'data', data)
+        object.__setattr__(self, 'solid', solid)
 
     @property
     def width(self):
