@@ -59,7 +59,9 @@ def make_clock(sim, stepped=False):
     p = sim.params
     if not p.publish_clock:
         return FollowedClock(sim)
-    return SteppedClock(sim) if stepped else LockstepClock(sim) if p.lockstep else FreeClock(sim)
+    if stepped:
+        return SteppedClock(sim)
+    return LockstepClock(sim) if p.lockstep else FreeClock(sim)
 
 
 class FollowedClock:
