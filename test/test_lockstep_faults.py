@@ -129,7 +129,8 @@ def test_a_multithreaded_executor_is_refused_by_name(graph):
     participant = Node('mt_participant', context=context,
                        parameter_overrides=[Parameter('use_sim_time', value=True)])
     take_part(participant)
-    executor = MultiThreadedExecutor(context=context)
+    # Two threads on any machine: by default it has one a core (one, and a warning, on one).
+    executor = MultiThreadedExecutor(num_threads=2, context=context)
     executor.add_node(participant)
     try:
         with pytest.raises(RuntimeError, match='MultiThreadedExecutor'):
