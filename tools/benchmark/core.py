@@ -36,23 +36,25 @@ TARGET_PER_ROBOT_US = (5.0, 20.0)  # idle, commanded
 TARGET_FLEET_MOTIONS_RTF = 5.0
 TARGET_SUITE_S = 60.0  # make test, 2 cores, a warm venv
 SIZES = {  # each: (make bench, --quick)
-    'starts': (20, 2), 'laps': (100, 100), 'latency_samples': (200, 5),
-    'circle_cycles': (10, 2), 'circle_half_period': (15.0, 3.0),
+    'starts': (20, 1), 'laps': (100, 10), 'latency_samples': (200, 5),
+    'circle_cycles': (10, 1), 'circle_half_period': (15.0, 1.0),
     'cpu_settle_s': (0.5, 0.2), 'cpu_seconds': (5.0, 0.2),  # wall s to settle, per sample
     # The three default motions of the real-time factor rows, shortened with --quick.
-    'circle_rtf': ({'cycles': 1, 'half_period': 15.0}, {'cycles': 1, 'half_period': 0.5}),
-    'out_and_back_rtf': ({}, {'goal_distance': 0.05, 'angular_speed': 4.0, 'pause': 0.0}),
+    'circle_rtf': ({'cycles': 1, 'half_period': 15.0}, {'cycles': 1, 'half_period': 0.2}),
+    'out_and_back_rtf': ({}, {'goal_distance': 0.05, 'angular_speed': 8.0, 'pause': 0.0}),
     'process_motions': (('rotate', 'circle', 'out_and_back'), ('rotate',)), 'process_runs': (2, 1),
     'robots': ((1, 4, 16), (1, 2)), 'robots_processes': ((1, 4, 16), (1,)),
     # What each robot of rows 11, 12 and 17 drives: odom_out_and_back, shortened.
     'scaling_motion': ({'goal_distance': 0.2, 'angular_speed': 2.0, 'pause': 0.2},
                        {'goal_distance': 0.1, 'angular_speed': 4.0, 'pause': 0.1, 'legs': 1}),
-    'scaling_window_s': (2.0, 0.5), 'fleet_settle_s': (0.5, 0.05), 'fleet_window_s': (3.0, 0.1),
+    'scaling_window_s': (2.0, 0.5), 'fleet_settle_s': (0.5, 0.0), 'fleet_window_s': (3.0, 0.05),
     'fleet_robots': ((1, 16, 64, 256), (1, 4)), 'fleet_free_robots': ((1, 16, 64, 256), (4,)),
+    'fleet_free_at_start': (True, False),  # row 15's clock: free at its start, or once heard
     'fleet_messages': (10000, 500),  # Odometry publishes for rclpy's cost per message
     'fleet_motion_robots': (16, 1),  # robots_processes[-1]: row 17 reuses row 12's pairs
     'fleet_idle_robots': (1024, 4),  # row 18: the largest idle fleet (quick: row 13's)
     'scan_repeats': (5, 1),  # row 20: casts timed, best of
+    'scan_loop_robots': (64, 8),  # row 20: robots the per-ray loop is timed on (of 64)
     'call_steps': (200, 20),  # row 6: steps whose calls are counted
     'ping_pongs': ((2000, 200), (100, 20)),  # row 7's reference: round trips, warm-ups
 }

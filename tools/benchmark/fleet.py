@@ -73,7 +73,8 @@ def start_sims(run, graph, counts, free_clock):
 
     Each: (process, namespace, probe of r0, probe of the last robot, parameter client or None).
 
-    free_clock: owning /clock at FREE_CLOCK_RTF; start one just before measuring it.  Its
+    free_clock: owning /clock at FREE_CLOCK_RTF (with --quick at real time until measure_sim
+    sets it: not a core burnt while it is found); start one just before measuring it.  Its
     parameter client is made before the probes' odometry subscriptions, which discovery
     announces in that order, so odometry heard shows that the simulator has matched the
     client's reply reader too: a request sent before that is answered into the void
@@ -89,7 +90,8 @@ def start_sims(run, graph, counts, free_clock):
         probes = {k: graph.probe('fleet', f'{ns}/r{k}', False, listen_only=True,
                                  enable_rosout=False) for k in {0, n - 1}}
         sims[n] = (run.start('unicycle_sim', namespace=ns, rate_hz=RATE_HZ, **(
-            {'publish_clock': True, 'real_time_factor': FREE_CLOCK_RTF} if free_clock else {}),
+            {'publish_clock': True, 'real_time_factor': FREE_CLOCK_RTF
+             if run.sizes.fleet_free_at_start else 1.0} if free_clock else {}),
             robots=str([f'r{k}' for k in range(n)])), ns, probes[0], probes[n - 1], client)
     return sims
 
@@ -108,6 +110,8 @@ def measure_sim(run, graph, robots, sim, free_clock):
     try:
         if not graph.spin_until(lambda: len(first.odoms) > 2, 30.0, poll=0.005):
             raise RuntimeError(f'no odometry from unicycle_sim:\n{run.stop(sim)}')
+        if free_clock and not sizes.fleet_free_at_start:
+            real_time_factor(FREE_CLOCK_RTF)  # --quick: started at real time (start_sims)
         graph.spin_for(sizes.fleet_settle_s)
         idle = window(graph, sim.pid, first, sizes.fleet_window_s)
         if free_clock:

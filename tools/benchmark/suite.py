@@ -27,9 +27,10 @@ from benchmark.core import row
 from sim_diffdrive.harness import DOMAIN_VARIABLE
 
 ROOT = Path(__file__).resolve().parents[2]
-# --quick checks the row on one module of pure tests: the suite itself runs the quick run.
-QUICK_COMMAND = (sys.executable, '-m', 'pytest', '-q', '-p', 'no:cacheprovider',
-                 'test/test_kinematics.py')
+# --quick checks the row on one module of two pure tests, without the suite's conftest.py and
+# hypothesis (a third of a CPU s): the suite itself runs the quick run.
+QUICK_COMMAND = (sys.executable, '-m', 'pytest', '-q', '-p', 'no:cacheprovider', '--noconftest',
+                 '-p', 'no:hypothesispytest', 'test/test_throttle.py')
 # make test's whole output, from the full run: a failure's own text, not only the run's tail.
 SUITE_LOG = ROOT / 'out' / 'suite.log'
 
@@ -83,7 +84,7 @@ def suite(run):
         'make test: wall time, and the CPU the machine was busy',
         f'{measured["wall_s"]:.1f} s ({counts}); the machine busy {measured["cpu_s"]:.1f} CPU s',
         f'that CPU on {cores} cores, never idle: {measured["cpu_s"] / cores:.1f} s',
-        ('--quick runs test/test_kinematics.py only, to check this row (no target). '
+        ('--quick runs test/test_throttle.py only, to check this row (no target). '
          if quick else '') + "The README's test command (make test: bytecode, then pytest with "
         'four workers), a warm venv, on ROS domains of its own; its wall time, and the '
         "machine's busy time over it from /proc/stat (every process, the browser's too). The "

@@ -27,7 +27,9 @@ TARGET_SCAN_CORE_PERCENT = 50.0
 
 @row('world')
 def scan_cast(run):
-    figures = measure(run.sizes.scan_repeats)
+    figures, timed_on = measure(run.sizes.scan_repeats, run.sizes.scan_loop_robots), ''
+    if run.sizes.scan_loop_robots != ROBOTS:  # --quick
+        timed_on = f', timed on {run.sizes.scan_loop_robots} of the robots and scaled'
     beams = ROBOTS * BEAMS
     share = figures['fleet_scan_s'] * RATE_HZ * 100.0
     loop_share = figures['fleet_loop_s'] * RATE_HZ * 100.0
@@ -39,5 +41,6 @@ def scan_cast(run):
         'sim_diffdrive.world.scan: every beam of every robot at once (numpy), exact to the cell '
         "boundaries, with the other robots' discs and noise. Reference: nav2_loopback_sim's "
         'method, a Python loop per ray over the grid (off by up to '
-        f"{figures['loop_error_max_m']:.3f} m). Leaves the rest of a core for the odometry.",
+        f"{figures['loop_error_max_m']:.3f} m{timed_on}). Leaves the rest of a core for the "
+        'odometry.',
         f'<= {TARGET_SCAN_CORE_PERCENT:g} %', share <= TARGET_SCAN_CORE_PERCENT, figures)
