@@ -17,7 +17,8 @@ motion_fleet: one motion per robot in one process, each in its robot's namespace
 
 In this process (build_fleet in a SimGraph) every robot ends at its analytic pose from its own
 start; as processes (the motion_fleet executable with the shipped params file against the
-simulator), likewise from each robot's odometry, and Ctrl-C leaves every robot stopped.
+simulator), likewise from each robot's odometry, and Ctrl-C leaves every robot stopped.  A
+simulator killed mid-motion stops every motion, and the fleet names each robot left unheard.
 Parameter mistakes are refused with exit code 2 and the parameter named.
 """
 
@@ -286,8 +287,20 @@ def test_a_motions_own_parameter_mistake_exits_2_and_names_robot_and_parameter(r
     assert 'Traceback' not in output
 
 
-def test_three_robots_from_the_shipped_params_file_each_end_exact(graph, procs):
-    sim, watchers = simulator(procs, graph)
+# One simulator process for every process check below, one after the other on the same robots
+# (a process start-up, and a simulator freewheeling on its own, saved each time): the fleet from
+# the shipped params file, exact; a fleet stopped with Ctrl-C while the simulator runs; then a
+# fleet whose simulator is killed under it.
+def test_three_robots_from_the_shipped_params_file_each_end_exact_then_ctrl_c_and_a_dead_sim(
+        graph, procs):
+    # The simulator keeps each last command for ever: only the motions' final stops stop them.
+    sim, watchers = simulator(procs, graph, 'cmd_vel_timeout:=0.0')
+    params_file_fleet_ends_exact(graph, procs, sim, watchers)
+    ctrl_c_stops_every_robot(graph, procs, watchers)
+    a_dead_simulator_stops_every_motion_and_is_named_per_robot(graph, procs, sim, watchers)
+
+
+def params_file_fleet_ends_exact(graph, procs, sim, watchers):
     fleet = procs('motion_fleet', 'motion_fleet', '--ros-args', '--params-file', str(CONFIG),
                   *ros_params('goal_distance:=0.3', 'pause:=0.1', 'legs:=1')[1:])
     code, output = wait_for_exit(graph, fleet)
@@ -304,22 +317,14 @@ def test_three_robots_from_the_shipped_params_file_each_end_exact(graph, procs):
         assert not is_moving(odom), closing
         assert_at(odom, end_of(motion, start_of(i)), closing)
     # The fleet took part as one: one answer a step for its three motions, and one goodbye.
-    sim_output = stop(sim)
+    assert graph.spin_until(lambda: 'left at' in sim.output(), 10.0), sim.describe()
+    sim_output = sim.output()
     assert re.findall(r'Lockstep: (\S+) takes part from .*; (\d+) participant', sim_output) \
         == [('/motion_fleet', '1')], sim_output
     assert re.findall(r'Lockstep: (\S+) left at', sim_output) == ['/motion_fleet'], sim_output
 
 
-# Two fleets on one simulator, one after the other: the first is stopped with Ctrl-C while the
-# simulator runs, the second once the simulator was killed.  One simulator process for both.
-DEAD_SIM_ROBOTS = ['robot4', 'robot5', 'robot6']
-
-
-def test_ctrl_c_stops_every_robot_and_a_dead_simulator_is_named_per_robot(graph, procs):
-    # The simulator keeps each last command for ever: only the motions' final stops stop them.
-    sim, watchers = simulator(procs, graph, 'cmd_vel_timeout:=0.0',
-                              robots=ROBOTS + DEAD_SIM_ROBOTS)
-    watchers, later_watchers = watchers[:len(ROBOTS)], watchers[len(ROBOTS):]
+def ctrl_c_stops_every_robot(graph, procs, watchers):
     fleet = procs('motion_fleet', 'motion_fleet', *ros_params(
         f'robots:=[{",".join(ROBOTS)}]', 'motions:=[circle_back_and_forth]', sim_time=True))
     assert graph.spin_until(lambda: all(w.moving for w in watchers), 20.0), \
@@ -342,14 +347,18 @@ def test_ctrl_c_stops_every_robot_and_a_dead_simulator_is_named_per_robot(graph,
         assert not any(is_moving(odom) for odom in stopped), robot
         assert len({pose_of(odom) for odom in stopped}) == 1, robot
 
-    # The second fleet (a node name of its own, so that it takes part under its own name)
-    # drives the other robots; the simulator is killed mid-run.  Its subscriptions stay in
-    # discovery for seconds, so nothing acknowledges the final stops of the second fleet's
-    # motions when it is stopped.
+
+def a_dead_simulator_stops_every_motion_and_is_named_per_robot(graph, procs, sim, watchers):
+    # A second fleet (a node name of its own, so that it takes part under its own name) drives
+    # the robots again, and the simulator is killed mid-motion.  On sim time an open-loop
+    # motion's ticks come with the clock: with its simulator killed, timed_out_and_back waited
+    # for its next tick forever, silent (found running it as a user).  Each motion notices by
+    # itself (odom_timeout, 1 s), stops its robot and fails.  The simulator's subscriptions
+    # stay in discovery for seconds (its lease), so nothing acknowledges the final stops.
     orphaned = procs('motion_fleet_orphaned', 'motion_fleet', *ros_params(
-        f'robots:=[{",".join(DEAD_SIM_ROBOTS)}]', 'motions:=[circle_back_and_forth]',
+        f'robots:=[{",".join(ROBOTS)}]', 'motions:=[circle_back_and_forth]',
         sim_time=True), '-r', 'motion_fleet:__node:=motion_fleet_orphaned')
-    assert graph.spin_until(lambda: all(w.moving for w in later_watchers), 20.0), \
+    assert graph.spin_until(lambda: all(w.moving for w in watchers), 20.0), \
         orphaned.describe()
     # The graph's nodes go first, as nothing is left to watch: destroying a node after a peer
     # on shared memory was SIGKILLed crashed the pytest worker, in Fast DDS, once in about 30
@@ -357,6 +366,15 @@ def test_ctrl_c_stops_every_robot_and_a_dead_simulator_is_named_per_robot(graph,
     graph.close()
     sim.send(signal.SIGKILL)
     sim.wait(10.0)
-    output = stop(orphaned, signal.SIGINT)
-    assert (f'Not acknowledged within 0.2 s: the final stop of {", ".join(DEAD_SIM_ROBOTS)} '
+    try:
+        code = orphaned.wait(10.0)
+    finally:
+        output = stop(orphaned)
+    assert code == 1, output
+    assert output.count('with no word from the simulator; stopped the robot') == len(ROBOTS), \
+        output
+    assert 'Motions: ' + '; '.join(f'{robot} circle_back_and_forth: exit code 1'
+                                   for robot in ROBOTS) in output, output
+    assert (f'Not acknowledged within 0.2 s: the final stop of {", ".join(ROBOTS)} '
             'and the lockstep goodbye (') in output, output
+    assert 'Traceback' not in output and 'Done in' not in output, output

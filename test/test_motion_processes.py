@@ -15,15 +15,17 @@
 """
 The real executables over DDS, as a user runs them: a simulator process and a motion process.
 
-Typed answers through a pipe, answers given as parameters, no odometry at all (input that
-ends too early: test_faults.py).  Exactness across processes (lockstep under load) is proven
-in test_lockstep_processes.py, interrupts in test_interrupts.py; here a result is accepted
-within one simulator step of motion.
+Typed answers through a pipe, answers given in a params file; no odometry at all
+through the motion's main() in this process (input that ends too early: test_faults.py).
+Exactness across processes (lockstep under load) is proven in test_lockstep_processes.py,
+interrupts in test_interrupts.py; here a result is accepted within one simulator step of motion.
 """
 
 import math
+from pathlib import Path
 import subprocess
 
+from motion_challenges import odom_out_and_back
 import pytest
 from sim_diffdrive import harness
 from sim_diffdrive.harness import angle_error
@@ -37,8 +39,9 @@ ONE_STEP_AT_60 = math.radians(60.0 / RATE_HZ) * 1.01
 
 
 # One simulator process for the module, a robot (namespace) per test: the tests never share a
-# robot, so none sees another's motion, and two process start-ups are saved.
-ROBOTS = ('typed', 'bad_answers', 'parameters')
+# robot, so none sees another's motion, and a process start-up is saved for each.
+ROBOTS = ('typed', 'parameters')
+CONFIG = Path(__file__).resolve().parents[1] / 'config'
 
 
 @pytest.fixture(scope='module')
@@ -84,15 +87,19 @@ def settle(graph, probe, seconds=0.3):
 
 
 # First, before the module's simulator starts: this test needs none, and the simulator,
-# freewheeling at REAL_TIME_FACTOR with three robots, would run on through it.
-def test_odom_motion_without_odometry_gives_up_and_never_moves(graph, procs):
+# freewheeling at REAL_TIME_FACTOR with its robots, would run on through it.  The motion runs
+# through its main() in this process (run_main), as its console script would run it: what is
+# tested is how the motion decides that a cmd_vel subscriber is not its robot, and a process
+# start-up (0.3 CPU s) is saved.  (That a console script's exit code is its main()'s return
+# is shown once per package by the processes of test_faults.py.)
+def test_odom_motion_without_odometry_gives_up_and_never_moves(graph, run_main):
     probe = graph.probe(use_sim_time=False)
-    motion = procs('odom_out_and_back', 'odom_out_and_back', '--ros-args',
-                   '-p', 'start_timeout:=1.0')
     # Be the robot's cmd_vel subscriber, but never publish odometry.
     received = []
     probe.create_subscription(type(probe.cmd_pub.msg_type()), 'cmd_vel', received.append, 10)
-    code, output = finish(graph, motion, timeout=20.0)
+    code, output = run_main(odom_out_and_back.main, 'odom_out_and_back', '--ros-args',
+                            '-p', 'start_timeout:=1.0')
+    graph.spin_for(0.2)  # what the motion sent, if anything, to the subscriber
     # A cmd_vel subscriber is not the robot (test_lockstep_faults.py has the robot come late):
     # it gives up, says why and never says Done.
     assert code == 1, output
@@ -101,26 +108,11 @@ def test_odom_motion_without_odometry_gives_up_and_never_moves(graph, procs):
     assert all(m.linear.x == 0.0 and m.angular.z == 0.0 for m in received)
 
 
-def test_typed_answers_through_a_pipe_rotate_the_robot(graph, robot, procs):
+def test_typed_answers_bad_ones_explained_and_asked_again_rotate_the_robot(
+        graph, robot, procs):
     probe = robot('typed')
     motion = procs('rotate_robot', 'rotate_robot', *rotate_args('typed'), stdin=subprocess.PIPE)
-    motion.write('60\n90\ny\n')
-    motion.close_input()
-    code, output = finish(graph, motion)
-    assert code == 0, output
-    assert 'Enter desired angular speed (degrees): ' in output
-    assert 'Do you want to rotate clockwise? (y/n): ' in output
-    assert 'Done' in output
-    _, _, yaw = settle(graph, probe)
-    assert angle_error(yaw, math.radians(-90.0)) < ONE_STEP_AT_60
-    assert probe.odom.twist.twist.angular.z == 0.0
-
-
-def test_bad_answers_are_explained_and_asked_again(graph, robot, procs):
-    probe = robot('bad_answers')
-    motion = procs('rotate_robot', 'rotate_robot', *rotate_args('bad_answers', 'mode:=odom'),
-                   stdin=subprocess.PIPE)
-    motion.write('fast\n-5\nnan\n60\n\n1e9\n45\nmaybe\nN\n')
+    motion.write('fast\n-5\nnan\n60\n\n1e9\n45\nmaybe\ny\n')
     motion.close_input()
     code, output = finish(graph, motion)
     assert code == 0, output
@@ -129,17 +121,26 @@ def test_bad_answers_are_explained_and_asked_again(graph, robot, procs):
     assert output.count('Do you want to rotate clockwise? (y/n): ') == 2
     assert "'fast' is not a number" in output
     assert 'answer y or n' in output
+    assert 'Done' in output
     _, _, yaw = settle(graph, probe)
-    assert angle_error(yaw, math.radians(45.0)) < ONE_STEP_AT_60
+    assert angle_error(yaw, math.radians(-45.0)) < ONE_STEP_AT_60
+    assert probe.odom.twist.twist.angular.z == 0.0
 
 
-def test_parameters_skip_the_questions(graph, robot, procs):
+def test_answers_from_a_params_file_skip_the_questions(graph, robot, procs):
+    # The shipped params file as a user runs it (test_params_files.py checks the file against
+    # the node): it gives rotate_robot's three answers, so nothing is asked.  The file is for
+    # the node /rotate_robot: its topics, not its name, go to the module's robot; mode odom
+    # from the command line over the file's timed (the typed answers above turn in timed mode).
     probe = robot('parameters')
-    motion = procs('rotate_robot', 'rotate_robot', *rotate_args(
-        'parameters', 'angular_speed_deg:=90', 'angle_deg:=180', 'clockwise:=false',
-        'mode:=odom'))
+    motion = procs('rotate_robot', 'rotate_robot', '--ros-args', '--params-file',
+                   str(CONFIG / 'rotate_robot.yaml'), '-p', 'use_sim_time:=true',
+                   '-p', 'mode:=odom', '-r', 'cmd_vel:=/parameters/cmd_vel',
+                   '-r', 'odom:=/parameters/odom')
     code, output = finish(graph, motion)
     assert code == 0, output
     assert 'Enter' not in output
+    assert 'Rotating 90 deg clockwise at 60 deg/s (odom mode)' in output, output
+    assert 'Done' in output, output
     _, _, yaw = settle(graph, probe)
-    assert angle_error(yaw, math.pi) < math.radians(90.0 / RATE_HZ) * 1.01
+    assert angle_error(yaw, math.radians(-90.0)) < ONE_STEP_AT_60

@@ -16,20 +16,18 @@
 The shipped params files (config/<executable>.yaml) against the nodes that read them.
 
 Each file must name only declared parameters, with values of the declared type, list every
-parameter of its node, and hold the defaults (rotate_robot's three answers aside).  One test
-runs an executable from its params file as a user would, over DDS against the simulator.
+parameter of its node, and hold the defaults (rotate_robot's three answers aside).
+rotate_robot run from its params file as a user would, over DDS against the simulator, is in
+test_motion_processes.py (its simulator process serves that run too).
 """
 
 from pathlib import Path
-import re
-import subprocess
 
 from motion_challenges.circle_back_and_forth import CircleBackAndForth
 from motion_challenges.odom_out_and_back import OdomOutAndBack
 from motion_challenges.rotate_robot import RotateRobot
 from motion_challenges.timed_out_and_back import TimedOutAndBack
 import pytest
-from sim_diffdrive.harness import ros_params
 from sim_diffdrive.sim.node import UnicycleSim
 import yaml
 
@@ -81,21 +79,3 @@ def test_params_file_matches_the_node(ros_context, name):
         # Parameters without a default (rotate_robot's answers) are the file's to choose.
         if defaults[key] is not None:
             assert value == defaults[key], f'{key} is not the default'
-
-
-def test_executable_runs_from_its_params_file(procs):
-    sim = procs('sim', 'unicycle_sim',
-                *ros_params('publish_clock:=true', 'real_time_factor:=50.0'))
-    motion = procs('motion', 'timed_out_and_back', '--ros-args', '--params-file',
-                   str(CONFIG / 'timed_out_and_back.yaml'), '-p', 'use_sim_time:=true',
-                   '-p', 'goal_distance:=0.2', '-p', 'pause:=0.2')
-    # The file's speeds and angle with the two overrides: 2 x (1 s out, 0.2 s pause, a turn of
-    # pi at 1 rad/s, 0.2 s pause) = 9.1 s of simulated time (how fast is the bench's row 7).
-    try:
-        code = motion.wait(30.0)
-    except subprocess.TimeoutExpired:
-        code = None
-    assert code == 0, motion.describe() + sim.describe()
-    output = motion.output()
-    assert '2 leg(s): 0.2 m at 0.2 m/s, turn 180 deg at 1 rad/s, pause 0.2 s' in output, output
-    assert re.search(r'Done in 9\.1[0-9]* s', output), output
