@@ -168,7 +168,6 @@ _LONGEST = (
     'test_interrupts.py::test_interrupt_mid_segment_and_during_a_pause',
     'test_motion_fleet.py::test_three_robots_from_the_shipped_params_file_each_end_exact',
     'test_lockstep_faults.py::test_foreign_stale_and_zero_stamps_and_leavers_never_stall',
-    'test_lockstep_faults.py::test_a_timed_motion_whose_simulator_dies_stops_and_fails',
 )
 
 
@@ -185,7 +184,6 @@ _WAITING = (
     'test_faults.py::test_make_stress_reports_and_judges_a_short_flood',
     'test_faults.py::test_a_cmd_vel_flood_is_cheap_the_last_command_wins',
     'test_foxglove.py::test_unicycle_sim_serves_odometry_at_its_rate',
-    'test_lockstep_faults.py::test_a_timed_motion_whose_simulator_dies_stops_and_fails',
     'test_motion_node.py::test_without_a_robot_it_gives_up_start_timeout_after_the_answers',
     'test_motion_node.py::test_start_timeout_does_not_count_the_time_spent_typing',
     'test_faults.py::test_two_controllers_at_once_are_warned_about_once',
