@@ -31,6 +31,7 @@ import pytest
 from rclpy.serialization import deserialize_message
 from sim_diffdrive import harness
 from sim_diffdrive.taps.msg_definitions import message_definition
+from sim_diffdrive.taps.view_page import free_port
 
 pytest.importorskip('foxglove')
 sync_client = pytest.importorskip('websockets.sync.client')
@@ -40,12 +41,6 @@ SUBPROTOCOLS = ['foxglove.sdk.v1', 'foxglove.websocket.v1']
 MESSAGE_DATA = 0x01  # opcode, then subscription id (u32), log time (u64), payload
 TIME = 0x02  # opcode, then the server's time (u64)
 STEP_NS = 20_000_000  # at rate_hz 50
-
-
-def free_port():
-    with socket.socket() as s:
-        s.bind(('127.0.0.1', 0))
-        return s.getsockname()[1]
 
 
 class FoxgloveClient:

@@ -44,6 +44,8 @@ from sim_diffdrive.taps.view import robot_colors
 from sim_diffdrive.taps.view import scan_points
 from sim_diffdrive.taps.view import solid_boxes
 from sim_diffdrive.taps.view_page import confine
+from sim_diffdrive.taps.view_page import ephemeral_ports
+from sim_diffdrive.taps.view_page import free_port
 from sim_diffdrive.world.grid import GridMap
 
 # Asked of the import system rather than imported: rerun takes 0.6 CPU s to import, which each
@@ -66,12 +68,6 @@ ROBOT_PIXELS = 150
 # Between two screenshots while waiting for a picture [s]: every 0.6 s instead of 0.2, the test
 # took 14.3 instead of 14.8 machine CPU s (four alternating pairs), and no longer.
 SHOT_PERIOD = 0.6
-
-
-def free_port():
-    with socket.socket() as s:
-        s.bind(('127.0.0.1', 0))
-        return s.getsockname()[1]
 
 
 @pytest.fixture(scope='module')
@@ -254,6 +250,16 @@ def test_the_font_links_are_taken_out_and_nothing_else():
             b'<link\n  href="https://fonts.googleapis.com/css2?family=Inter"\n'
             b'  rel="stylesheet"\n/>\n<link rel="icon" href="favicon.ico" />\n</head>')
     assert confine(html) == b'<head>\n\n\n<link rel="icon" href="favicon.ico" />\n</head>'
+
+
+def test_a_free_port_is_one_no_outgoing_connection_can_take_first():
+    # The ports handed to the page and the rerun program are bound a while later; a port of
+    # the ephemeral range could meanwhile become the local end of any connection on the
+    # machine (once "Address already in use" in a full suite).
+    for port in {free_port() for _ in range(8)}:
+        assert 10000 <= port < ephemeral_ports().start
+        with socket.socket() as server:
+            server.bind(('127.0.0.1', port))
 
 
 # In process, the two ways the view cannot open: the simulator opens its view as it starts,

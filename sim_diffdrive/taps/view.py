@@ -35,6 +35,8 @@ import uuid
 
 import numpy as np
 from sim_diffdrive.angles import quaternion_from_yaw
+from sim_diffdrive.taps.view_page import ephemeral_ports
+from sim_diffdrive.taps.view_page import free_port
 from sim_diffdrive.taps.view_page import page_url
 from sim_diffdrive.taps.view_page import ViewerPage
 
@@ -91,7 +93,7 @@ class BrowserView:
         self._scan_fresh = False
         self._colors = robot_colors(len(node.world.names))
         try:
-            grpc_port, files_port = _grpc_port(host, port), _free_port(host)
+            grpc_port, files_port = _grpc_port(host, port), free_port(host)
             run = uuid.uuid4()
             self.grpc_url = f'rerun+http://{host}:{grpc_port}/proxy'
             self._page = ViewerPage(host, port, files_port, [
@@ -384,20 +386,14 @@ def rerun_program():
 
 def _grpc_port(host, view_port):
     """Return view_port + 1 when free (the same address to open, run after run), else any."""
-    if 0 < view_port < 65535:
+    if 0 < view_port < 65535 and view_port + 1 not in ephemeral_ports():  # free_port: a race
         with socket.socket() as probe:
             # As the rerun program binds: connections in TIME_WAIT do not keep the port.
             probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
             with contextlib.suppress(OSError):
                 probe.bind((host, view_port + 1))
                 return view_port + 1
-    return _free_port(host)
-
-
-def _free_port(host):
-    with socket.socket() as probe:
-        probe.bind((host, 0))
-        return probe.getsockname()[1]
+    return free_port(host)
 
 
 def _listening(host, port):

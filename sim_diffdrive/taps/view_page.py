@@ -21,11 +21,14 @@ example lists, and send analytics (its web build has no switch for that).  Reque
 is not this machine's are refused (DNS rebinding).
 """
 
+import contextlib
 import functools
 import http.client
 from http.server import BaseHTTPRequestHandler
 from http.server import ThreadingHTTPServer
+import random
 import re
+import socket
 import threading
 
 # What the page may load and talk to: itself, and the gRPC port the viewer streams from.
@@ -46,6 +49,36 @@ _FOLLOW = (f"<script>setInterval(() => fetch('{RUN_PATH}').then(r => r.text()).t
 _LOCAL_HOSTS = ('127.0.0.1', 'localhost')
 # Headers of the upstream answer passed on (rerun-final-length drives the page's progress bar).
 _PASSED_HEADERS = ('content-type', 'rerun-final-length', 'content-encoding')
+
+
+def ephemeral_ports():
+    """Return the range the kernel takes the local ports of outgoing connections from."""
+    with contextlib.suppress(OSError, ValueError):
+        with open('/proc/sys/net/ipv4/ip_local_port_range') as ports:
+            low, high = map(int, ports.read().split())
+            return range(low, high + 1)
+    return range(32768, 61000)  # Linux's default
+
+
+def free_port(host='127.0.0.1'):
+    """
+    Return a TCP port free on host now, below the ephemeral range where one can be found.
+
+    The port is handed to a server that binds it later.  Any outgoing connection on the
+    machine (the page's own requests to the rerun program, a test's client) may take a
+    free ephemeral port meanwhile, so a port from that range is a race.
+    """
+    below = range(10000, ephemeral_ports().start)  # above the ports services are known on
+    for port in random.sample(below, min(64, len(below))):
+        with socket.socket() as probe:
+            # As the servers bind: connections in TIME_WAIT do not keep the port.
+            probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+            with contextlib.suppress(OSError):
+                probe.bind((host, port))
+                return port
+    with socket.socket() as probe:
+        probe.bind((host, 0))
+        return probe.getsockname()[1]
 
 
 def page_url(port, grpc_url):
