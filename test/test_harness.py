@@ -22,6 +22,8 @@ import sys
 import time
 
 import pytest
+import rclpy
+from rclpy.context import Context
 from sim_diffdrive.harness import kill_all
 from sim_diffdrive.harness import Process
 from sim_diffdrive.harness import SimGraph
@@ -172,6 +174,22 @@ def test_a_graph_without_a_stepped_simulator_removes_nodes(ros_context):
         assert graph.nodes == [other]
     finally:
         graph.close()
+
+
+def test_removing_a_node_waits_for_its_own_publishers_only(ros_context, graph):
+    # Another participant (as another process is) publishes on the topics every node has.
+    other = Context()
+    rclpy.init(context=other, domain_id=ros_context.get_domain_id())
+    try:
+        elsewhere = rclpy.create_node('elsewhere', context=other)
+        probe = graph.probe(listen_only=True)
+        graph.probe('other', listen_only=True)
+        assert graph.spin_until(lambda: probe.count_publishers('/parameter_events') == 3)
+        assert graph.remove(probe)  # not held until the other participant leaves
+        assert graph.nodes[0].count_publishers('/parameter_events') == 2
+        elsewhere.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=other)
 
 
 def test_one_stepped_simulator_per_graph_and_it_owns_the_clock(graph):

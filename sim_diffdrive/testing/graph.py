@@ -95,8 +95,14 @@ class Lockstep:
         return self.add(sim)
 
     def remove(self, node):
-        """Stop spinning node and destroy it; wait until the graph has forgotten its publishers."""
-        topics = {pub.topic_name for pub in node.publishers}
+        """
+        Stop spinning node and destroy it; wait until the graph has forgotten its publishers.
+
+        Returns whether it has within 10 s.  Only the node's own are waited for: other
+        processes publish on its topics too (every node on /rosout and /parameter_events).
+        """
+        ours = collections.Counter(pub.topic_name for pub in node.publishers)
+        left = {topic: node.count_publishers(topic) - count for topic, count in ours.items()}
         self.executor.remove_node(node)
         self.nodes.remove(node)
         if node is self.clock_owner:
@@ -111,10 +117,9 @@ class Lockstep:
         # A destroyed publisher leaves the graph a little later: wait, so that the next node on
         # its topic is not taken for a second publisher.
         def forgotten():
-            return not self.nodes or all(self.nodes[0].count_publishers(topic) <= sum(
-                pub.topic_name == topic for n in self.nodes for pub in n.publishers)
-                for topic in topics)
-        self.spin_until(forgotten, 10.0, poll=0.005)
+            return not self.nodes or all(
+                self.nodes[0].count_publishers(topic) <= count for topic, count in left.items())
+        return self.spin_until(forgotten, 10.0, poll=0.005)
 
     def close(self):
         """Shut the executor down, then destroy every node (the context is the caller's)."""
