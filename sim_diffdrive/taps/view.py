@@ -38,6 +38,7 @@ from sim_diffdrive.angles import quaternion_from_yaw
 from sim_diffdrive.taps.view_page import ephemeral_ports
 from sim_diffdrive.taps.view_page import free_port
 from sim_diffdrive.taps.view_page import page_url
+from sim_diffdrive.taps.view_page import port_is_free
 from sim_diffdrive.taps.view_page import ViewerPage
 
 DEFAULT_HOST = '127.0.0.1'
@@ -386,13 +387,11 @@ def rerun_program():
 
 def _grpc_port(host, view_port):
     """Return view_port + 1 when free (the same address to open, run after run), else any."""
-    if 0 < view_port < 65535 and view_port + 1 not in ephemeral_ports():  # free_port: a race
-        with socket.socket() as probe:
-            # As the rerun program binds: connections in TIME_WAIT do not keep the port.
-            probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-            with contextlib.suppress(OSError):
-                probe.bind((host, view_port + 1))
-                return view_port + 1
+    grpc_port = view_port + 1
+    # Not from the ephemeral range, where an outgoing connection may take it first (free_port).
+    if 0 < view_port < 65535 and grpc_port not in ephemeral_ports() and port_is_free(
+            host, grpc_port):
+        return grpc_port
     return free_port(host)
 
 

@@ -70,15 +70,23 @@ def free_port(host='127.0.0.1'):
     """
     below = range(10000, ephemeral_ports().start)  # above the ports services are known on
     for port in random.sample(below, min(64, len(below))):
-        with socket.socket() as probe:
-            # As the servers bind: connections in TIME_WAIT do not keep the port.
-            probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-            with contextlib.suppress(OSError):
-                probe.bind((host, port))
-                return port
+        if port_is_free(host, port):
+            return port
     with socket.socket() as probe:
         probe.bind((host, 0))
         return probe.getsockname()[1]
+
+
+def port_is_free(host, port):
+    """Return whether a server could bind host:port now."""
+    with socket.socket() as probe:
+        # As the servers bind: connections in TIME_WAIT do not keep the port.
+        probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            probe.bind((host, port))
+        except OSError:
+            return False
+    return True
 
 
 def page_url(port, grpc_url):
