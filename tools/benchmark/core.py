@@ -49,7 +49,6 @@ SIZES = {  # each: (make bench, --quick)
                        {'goal_distance': 0.1, 'angular_speed': 4.0, 'pause': 0.1, 'legs': 1}),
     'scaling_window_s': (2.0, 0.5), 'fleet_settle_s': (0.5, 0.0), 'fleet_window_s': (3.0, 0.05),
     'fleet_robots': ((1, 16, 64, 256), (1, 4)), 'fleet_free_robots': ((1, 16, 64, 256), (4,)),
-    'fleet_free_at_start': (True, False),  # row 15's clock: free at its start, or once heard
     'fleet_messages': (10000, 500),  # Odometry publishes for rclpy's cost per message
     'fleet_motion_robots': (16, 1),  # robots_processes[-1]: row 17 reuses row 12's pairs
     'fleet_idle_robots': (1024, 4),  # row 18: the largest idle fleet (quick: row 13's)

@@ -90,8 +90,8 @@ def start_sims(run, graph, counts, free_clock):
         probes = {k: graph.probe('fleet', f'{ns}/r{k}', False, listen_only=True,
                                  enable_rosout=False) for k in {0, n - 1}}
         sims[n] = (run.start('unicycle_sim', namespace=ns, rate_hz=RATE_HZ, **(
-            {'publish_clock': True, 'real_time_factor': FREE_CLOCK_RTF
-             if run.sizes.fleet_free_at_start else 1.0} if free_clock else {}),
+            {'publish_clock': True, 'real_time_factor': 1.0 if run.sizes.quick
+             else FREE_CLOCK_RTF} if free_clock else {}),
             robots=str([f'r{k}' for k in range(n)])), ns, probes[0], probes[n - 1], client)
     return sims
 
@@ -110,7 +110,7 @@ def measure_sim(run, graph, robots, sim, free_clock):
     try:
         if not graph.spin_until(lambda: len(first.odoms) > 2, 30.0, poll=0.005):
             raise RuntimeError(f'no odometry from unicycle_sim:\n{run.stop(sim)}')
-        if free_clock and not sizes.fleet_free_at_start:
+        if free_clock and sizes.quick:
             real_time_factor(FREE_CLOCK_RTF)  # --quick: started at real time (start_sims)
         graph.spin_for(sizes.fleet_settle_s)
         idle = window(graph, sim.pid, first, sizes.fleet_window_s)
