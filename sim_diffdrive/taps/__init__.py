@@ -49,10 +49,10 @@ class Taps:
     def __init__(self, node, taps):
         self._node = node
         self._taps = list(taps)
-        self._changed()
 
-    def _changed(self):
-        self.wants_path = any(tap.wants_path for tap in self._taps)
+    @property
+    def wants_path(self):
+        return any(tap.wants_path for tap in self._taps)
 
     def __bool__(self):
         return bool(self._taps)
@@ -73,7 +73,6 @@ class Taps:
                 f'{tap.name}: {type(error).__name__}: {error}; stopped writing to it, the '
                 'simulation goes on')
             self._taps.remove(tap)
-            self._changed()
             self._close(tap)
 
     def step(self, stamp_ns, world):
@@ -85,7 +84,6 @@ class Taps:
     def close(self):
         """Close every tap (idempotent)."""
         taps, self._taps = self._taps, []
-        self._changed()
         for tap in taps:
             self._close(tap)
 
