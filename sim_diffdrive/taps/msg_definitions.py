@@ -41,20 +41,18 @@ def type_name(message_class):
     return f'{package}/msg/{message_class.__name__}'
 
 
-def topic_type(node, topic):
-    """Return the message class node publishes or subscribes on topic (its full name)."""
-    for entity in itertools.chain(node.publishers, node.subscriptions):
-        if entity.topic_name == topic:
-            return entity.msg_type
-    raise LookupError(f'{node.get_fully_qualified_name()} has no publisher or subscription '
-                      f'on {topic}')
-
-
 def message_class(node, topic, msg, types):
     """Return the class of msg (a message, or its CDR bytes: cached in types) node has on topic."""
     if not isinstance(msg, bytes):
         return type(msg)
-    return types.get(topic) or types.setdefault(topic, topic_type(node, topic))
+    if topic not in types:  # the type of node's publisher or subscription on topic
+        found = [entity.msg_type for entity in itertools.chain(
+            node.publishers, node.subscriptions) if entity.topic_name == topic]
+        if not found:
+            raise LookupError(f'{node.get_fully_qualified_name()} has no publisher or '
+                              f'subscription on {topic}')
+        types[topic] = found[0]
+    return types[topic]
 
 
 def message_definition(name):
