@@ -22,7 +22,6 @@ is not this machine's are refused (DNS rebinding).
 """
 
 import contextlib
-import functools
 import http.client
 from http.server import BaseHTTPRequestHandler
 from http.server import ThreadingHTTPServer
@@ -115,11 +114,11 @@ class ViewerPage:
 
         grpc_origins: the origins the page may stream from; run: (id, gRPC url) of this run.
         """
-        handler = functools.partial(
-            _PageHandler, upstream_port=upstream_port,
-            csp=CSP.format(grpc=' '.join(grpc_origins)), run=run)
-        self._server = ThreadingHTTPServer((host, port), handler)
+        self._server = ThreadingHTTPServer((host, port), _PageHandler)
         self._server.daemon_threads = True
+        # What the handler (one per request) reads from its server.
+        self._server.upstream_port, self._server.run = upstream_port, run
+        self._server.csp = CSP.format(grpc=' '.join(grpc_origins))
         self.port = self._server.server_address[1]
         self._thread = threading.Thread(
             target=self._server.serve_forever, kwargs={'poll_interval': 0.2},
@@ -138,26 +137,21 @@ class ViewerPage:
 class _PageHandler(BaseHTTPRequestHandler):
     """GET: the upstream file, under the policy; index.html without the font links."""
 
-    def __init__(self, *args, upstream_port, csp, run, **kwargs):
-        self._upstream_port = upstream_port
-        self._csp = csp
-        self._run = run
-        super().__init__(*args, **kwargs)
-
     def do_GET(self):  # noqa: N802 (the name http.server dispatches to)
-        port = self.server.server_address[1]
+        port, run = self.server.server_address[1], self.server.run
         if self.headers.get('Host') not in {f'{host}:{port}' for host in _LOCAL_HOSTS}:
             self.send_error(403, 'this viewer answers to 127.0.0.1 and localhost only')
             return
         path, _, query = self.path.partition('?')
         if path == RUN_PATH:
             self._send(200, [('Content-Type', 'text/plain'), ('Cache-Control', 'no-store')],
-                       ' '.join(self._run).encode())
+                       ' '.join(run).encode())
             return
         if path == '/' and 'url=' not in query:  # http://127.0.0.1:PORT/ opens this run
-            self._send(302, [('Location', page_url(port, self._run[1]))], b'')
+            self._send(302, [('Location', page_url(port, run[1]))], b'')
             return
-        upstream = http.client.HTTPConnection('127.0.0.1', self._upstream_port, timeout=10.0)
+        upstream = http.client.HTTPConnection(
+            '127.0.0.1', self.server.upstream_port, timeout=10.0)
         try:
             try:
                 upstream.request('GET', path)
@@ -168,7 +162,7 @@ class _PageHandler(BaseHTTPRequestHandler):
             headers = [(name, answer.getheader(name)) for name in _PASSED_HEADERS
                        if answer.getheader(name) is not None] + [('Cache-Control', 'no-cache')]
             if path in ('/', '/index.html') and answer.status == 200:
-                self._send(200, headers, follow(confine(answer.read()), self._run[0]))
+                self._send(200, headers, follow(confine(answer.read()), run[0]))
             else:
                 self._send(answer.status, headers, stream=answer)
         except (ConnectionError, TimeoutError):
@@ -182,7 +176,7 @@ class _PageHandler(BaseHTTPRequestHandler):
             self.send_header(name, value)
         if body is not None:
             self.send_header('Content-Length', str(len(body)))
-        self.send_header('Content-Security-Policy', self._csp)
+        self.send_header('Content-Security-Policy', self.server.csp)
         self.end_headers()
         if body is not None:
             self.wfile.write(body)
