@@ -23,6 +23,7 @@ commanded) as numpy arrays, shaped by the plain functions at the end.
 
 import atexit
 import collections
+import colorsys
 import contextlib
 import os
 import shutil
@@ -146,11 +147,9 @@ class BrowserView:
         return process
 
     def _log_tail(self):
-        try:
-            with open(self._log_path, 'rb') as log:
-                lines = log.read().decode(errors='replace').strip().splitlines()
-        except OSError:
-            return 'no output'
+        lines = []
+        with contextlib.suppress(OSError), open(self._log_path, 'rb') as log:
+            lines = log.read().decode(errors='replace').strip().splitlines()
         return lines[-1] if lines else 'no output'
 
     def write(self, topic, msg, stamp_ns):
@@ -455,10 +454,5 @@ def solid_boxes(grid):
 def robot_colors(count):
     """Return count distinct RGB colours (uint8), the same for the same index in every run."""
     hues = (0.07 + _GOLDEN * np.arange(count)) % 1.0  # orange first: not Rerun's own blue
-    return (np.stack([_hsv_channel(hues, shift) for shift in (5.0, 3.0, 1.0)], axis=1)
-            * 255).round().astype(np.uint8)
-
-
-def _hsv_channel(hues, shift, saturation=0.75, value=0.9):
-    k = (shift + hues * 6.0) % 6.0
-    return value - value * saturation * np.clip(np.minimum(k, 4.0 - k), 0.0, 1.0)
+    rgb = [colorsys.hsv_to_rgb(hue, 0.75, 0.9) for hue in hues]
+    return (np.array(rgb).reshape(-1, 3) * 255).round().astype(np.uint8)
