@@ -150,7 +150,7 @@ class Lockstep:
         if not self.spin_until(matched, timeout, poll=0.01):
             raise RuntimeError('in-process nodes did not discover each other')
         # Count traffic from here on: what was sent before the nodes matched may never arrive.
-        now_ns = self._now_ns()
+        now_ns = self.now_ns
         for node in self.nodes:
             counter = self._counters[node] = MessageCounter.of(node, clock_topic(node),
                                                                fixed=True)
@@ -188,7 +188,7 @@ class Lockstep:
 
     @property
     def now_ns(self):
-        return self.clock_owner.now_ns()
+        return self.clock_owner.now_ns() if self.clock_owner is not None else 0
 
     @property
     def step_ns(self):
@@ -239,10 +239,7 @@ class Lockstep:
 
     def pending(self):
         """Return how many messages sent in the graph have not been handled yet."""
-        return sum(due for _, _, due in self.ledger.waiting_for(self._now_ns()))
-
-    def _now_ns(self):
-        return self.clock_owner.now_ns() if self.clock_owner is not None else 0
+        return sum(due for _, _, due in self.ledger.waiting_for(self.now_ns))
 
 
 def isolated_domain_id():
@@ -337,7 +334,7 @@ class SimGraph(Lockstep):
         self.add_clock_owner(sim) if stepped else self.add(sim)
         # Listen to odometry from the first message on (each robot's, with robots).
         for robot in params.get('robots') or [None]:
-            self._listen(robot)
+            self.listener(robot)
             if params.get('map_file'):
                 self._listen_to_scan(robot)
         return sim
@@ -356,13 +353,10 @@ class SimGraph(Lockstep):
     @property
     def odometry(self):
         """Return the graph's listening Probe on ``odom`` (odoms, odom_walls)."""
-        return self._listen()
+        return self.listener()
 
-    def listener(self, robot):
+    def listener(self, robot=None):
         """Return the graph's listening Probe on robot's ``<robot>/odom`` (see ``robots``)."""
-        return self._listen(robot)
-
-    def _listen(self, robot=None):
         probe = self._probes.get(robot)
         if probe is None:
             probe = self._probes[robot] = self.probe(
@@ -378,7 +372,7 @@ class SimGraph(Lockstep):
 
     def odom(self, robot=None):
         """Return the latest Odometry message the graph has seen (robot's, if named), or None."""
-        return self._listen(robot).odom
+        return self.listener(robot).odom
 
     def scan(self, robot=None):
         """Return the latest LaserScan the graph has seen (robot's, if named), or None."""
