@@ -131,12 +131,17 @@ class Lockstep:
         self.nodes = []
 
     def spin_until(self, predicate, timeout=10.0, poll=0.01):
-        """Spin until predicate() is true; return whether it became true within timeout (wall)."""
-        deadline = time.monotonic() + timeout
+        """Spin until predicate() is true; False after timeout [s, wall] of waiting for it."""
+        now = time.monotonic()
+        deadline = now + timeout
         while not predicate():
-            if time.monotonic() > deadline:
+            if now > deadline:
                 return False
             self.executor.spin_once(timeout_sec=poll)
+            # A callback that ran past the poll (a motion drawing its plot_file as it ends)
+            # kept the graph busy, not waiting: the timeout is for what never comes.
+            start, now = now, time.monotonic()
+            deadline += max(0.0, now - start - poll)
         return True
 
     def wait_for_discovery(self, timeout=10.0):
@@ -199,7 +204,7 @@ class Lockstep:
         if not self._discovered:
             self.wait_for_discovery()
         now_ns = self.clock_owner.now_ns()
-        if not self._settle(lambda: not self.ledger.waiting_for(now_ns), timeout):
+        if not self.spin_until(lambda: not self.ledger.waiting_for(now_ns), timeout):
             raise RuntimeError(f'messages sent at t={now_ns / _NS:.3f} s were not handled')
         for _ in range(steps):
             self.ledger.next_step(now_ns)  # forgets what was heard beyond what was sent
@@ -208,22 +213,8 @@ class Lockstep:
             now_ns = self.clock_owner.now_ns()
             for answer in self._answers.values():
                 answer.step_ns = now_ns  # each node answers at once: settled() checks the rest
-            if not self._settle(lambda: self.settled(now_ns), timeout):
+            if not self.spin_until(lambda: self.settled(now_ns), timeout):
                 raise RuntimeError(f'graph did not settle at t={now_ns / _NS:.3f} s')
-
-    def _settle(self, predicate, timeout, poll=0.01):
-        """Spin until predicate() is true; False after timeout [s, wall] of waiting for it."""
-        now = time.monotonic()
-        deadline = now + timeout
-        while not predicate():
-            if now > deadline:
-                return False
-            self.executor.spin_once(timeout_sec=poll)
-            # A callback that ran past the poll (a motion drawing its plot_file as it ends)
-            # kept the graph busy, not waiting: the timeout is for what never comes.
-            start, now = now, time.monotonic()
-            deadline += max(0.0, now - start - poll)
-        return True
 
     def step_until(self, predicate, sim_timeout):
         """Step until predicate() holds; raise after sim_timeout simulated seconds."""
@@ -399,7 +390,8 @@ class SimGraph(Lockstep):
 
     def spin_for(self, seconds):
         """Spin for a number of wall seconds."""
-        self.spin_until(lambda: False, seconds, poll=0.01)
+        end = time.monotonic() + seconds
+        self.spin_until(lambda: time.monotonic() >= end, seconds)
 
     def close(self):
         super().close()
