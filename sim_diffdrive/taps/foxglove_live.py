@@ -29,6 +29,7 @@ from sim_diffdrive.cdr import read_odometry
 from sim_diffdrive.taps.msg_definitions import message_class
 from sim_diffdrive.taps.msg_definitions import message_definition
 from sim_diffdrive.taps.msg_definitions import type_name
+from sim_diffdrive.throttle import Throttle
 
 DEFAULT_HOST = '127.0.0.1'
 SCENE_TOPIC = '/foxglove/robot'
@@ -72,7 +73,7 @@ class FoxgloveLive:
         self._transforms = None if node.params.publish_tf else channels.FrameTransformsChannel(
             TRANSFORM_TOPIC, context=self._context)
         self._scene_walls = {}  # robot frame -> when its scene entity was last sent [monotonic]
-        self._path_wall = 0.0
+        self._path_throttle = Throttle(PATH_PERIOD_S)
         node.get_logger().info(f'Foxglove: {self.url} (Open connection in Foxglove)')
 
     def write(self, topic, msg, stamp_ns):
@@ -91,11 +92,8 @@ class FoxgloveLive:
             self._write_robot(msg, stamp_ns)
         if not channel.has_sinks():
             return
-        if msg_class is Path:  # the costliest message: throttled
-            now = time.monotonic()
-            if now - self._path_wall < PATH_PERIOD_S:
-                return
-            self._path_wall = now
+        if msg_class is Path and not self._path_throttle.allows():  # the costliest message
+            return
         channel.log(msg if isinstance(msg, bytes) else serialize_message(msg),
                     log_time=stamp_ns)
 
