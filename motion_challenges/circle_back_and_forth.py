@@ -16,9 +16,9 @@
 
 import math
 
+from motion_challenges.motion_node import rate_spec
 from motion_challenges.plans import circle_end
 from motion_challenges.plans import circle_plan
-from motion_challenges.specs import rate_spec
 from motion_challenges.timed_motion import TimedMotion
 from sim_diffdrive.parameters import Spec
 from sim_diffdrive.runtime import run

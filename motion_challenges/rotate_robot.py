@@ -22,6 +22,7 @@ import math
 import sys
 
 from motion_challenges.controllers import SpinController
+from motion_challenges.motion_node import rate_spec
 from motion_challenges.plans import rotation_end
 from motion_challenges.plans import rotation_plan
 from motion_challenges.prompts import ask_rotation
@@ -29,7 +30,6 @@ from motion_challenges.prompts import InputEnded
 from motion_challenges.prompts import MAX_ANGLE_DEG
 from motion_challenges.prompts import MAX_ANGULAR_SPEED_DEG
 from motion_challenges.prompts import stream_writer
-from motion_challenges.specs import rate_spec
 from motion_challenges.timed_motion import TimedMotion
 from sim_diffdrive.parameters import Spec
 from sim_diffdrive.runtime import destroyed_if_refused
