@@ -186,11 +186,6 @@ def rotation_end(start, angle, clockwise):
     return x, y, yaw - angle if clockwise else yaw + angle
 
 
-def circle_end(start):
-    """Return the pose circle_plan leads back to from start: start itself."""
-    return tuple(start)
-
-
 def out_and_back_end(start, goal_distance, goal_angle, legs):
     """Return the pose (x, y, yaw) the legs lead to from start (the start itself for pi x 2)."""
     x, y, yaw = start
