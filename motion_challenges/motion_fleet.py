@@ -135,9 +135,9 @@ def _build_motion(context, robot_ns, motion, parameter_overrides, participant):
 
 def _start_rotation(node):
     p = node.params
-    if node.missing_answers():
-        missing = [name for name in ('angular_speed_deg', 'angle_deg', 'clockwise')
-                   if getattr(p, name) is None]
+    missing = [name for name in ('angular_speed_deg', 'angle_deg', 'clockwise')
+               if getattr(p, name) is None]
+    if missing:
         raise ParameterError('rotate_robot asks nothing in a fleet: give ' + ', '.join(missing)
                              + ' as parameters (-p, or a params file section for this robot)')
     node.start(RotationRequest(p.angular_speed_deg, p.angle_deg, p.clockwise))

@@ -68,10 +68,6 @@ class RotateRobot(TimedMotion):
         self.robot_accel = (0.0, math.radians(self.params.robot_angular_accel_deg))
         self.request = None
 
-    def missing_answers(self):
-        p = self.params
-        return p.angular_speed_deg is None or p.angle_deg is None or p.clockwise is None
-
     def start(self, request):
         """Set the goal (from parameters and answers) and begin waiting for the robot."""
         p = self.params
