@@ -69,13 +69,12 @@ def _check_positive(value, shown, what, max_value):
 def parse_positive_number(text, what, max_value):
     """Parse a positive, finite number up to max_value; ``what`` names it in the ValueError."""
     stripped = text.strip()
-    accepted = _accepted(what, max_value)
     if not stripped:
-        raise ValueError(f'nothing was entered; {accepted}')
+        raise ValueError(f'nothing was entered; {_accepted(what, max_value)}')
     try:
         value = float(stripped)
     except ValueError:
-        raise ValueError(f'{_shown(stripped)} is not a number; {accepted}') from None
+        value = math.nan  # refused as 'not a number', as 'nan' typed is
     return _check_positive(value, _shown(stripped), what, max_value)
 
 
