@@ -77,7 +77,6 @@ class RotateRobot(TimedMotion):
         self.spin = SpinController(
             self.goal, request.clockwise, self.speed, math.radians(p.min_angular_speed_deg),
             math.radians(p.angular_accel_deg), self.period, robot_accel=self.robot_accel[1])
-        self.sign = self.spin.sign
         self.get_logger().info(
             f'Rotating {request.angle_deg:g} deg '
             f'{"clockwise" if request.clockwise else "counter-clockwise"} at '
@@ -101,10 +100,10 @@ class RotateRobot(TimedMotion):
         return command
 
     def goal_pose(self, start):
-        return rotation_end((start.x, start.y, start.yaw), self.goal, self.sign < 0)
+        return rotation_end((start.x, start.y, start.yaw), self.goal, self.request.clockwise)
 
     def summary(self, end_odom):
-        goal_deg = self.sign * self.request.angle_deg
+        goal_deg = self.spin.sign * self.request.angle_deg
         if end_odom is None:
             return f'commanded {goal_deg:.4f} deg; no odometry, achieved angle unknown'
         turned_deg = math.degrees(self.turned.total)
