@@ -15,6 +15,7 @@
 """Typed input for the rotate motion: a bad answer is explained and asked again (no ROS)."""
 
 from dataclasses import dataclass
+import functools
 import math
 
 MAX_ANGULAR_SPEED_DEG = 720.0
@@ -91,10 +92,7 @@ def parse_yes_no(text):
 
 def stream_writer(stream):
     """Return a write(text) that flushes, so a prompt shows before the input is read."""
-    def write(text):
-        stream.write(text)
-        stream.flush()
-    return write
+    return functools.partial(print, end='', file=stream, flush=True)
 
 
 def _ask(read_line, write, prompt, parse, missing):
