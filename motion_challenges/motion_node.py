@@ -25,6 +25,7 @@ import time
 from geometry_msgs.msg import Twist
 from geometry_msgs.msg import TwistStamped
 from motion_challenges.controllers import CommandLog
+from motion_challenges.controllers import NS
 from motion_challenges.controllers import odometry_fault
 from motion_challenges.controllers import Standstill
 from motion_challenges.plotting import write_plot
@@ -47,7 +48,6 @@ from sim_diffdrive.runtime import EXIT_FAILED
 from sim_diffdrive.runtime import EXIT_OK
 from sim_diffdrive.throttle import Throttle
 
-_NS = 1_000_000_000
 # How long to wait for the odometry that shows where the robot came to rest: this many control
 # periods, or odom_timeout if longer.
 _SETTLE_TICKS = 20
@@ -311,10 +311,10 @@ class MotionNode(Node):
         fresh = self.odom is not None and self.odom.stamp_ns > self._stop_ns
         # Long enough for a robot whose odometry is much slower than the control rate; on the
         # node clock, so a loaded machine on sim time waits no less.
-        waited = (now_ns - self._stop_ns) / _NS > max(_SETTLE_TICKS * self.period,
-                                                      self.params.odom_timeout)
+        waited = (now_ns - self._stop_ns) / NS > max(_SETTLE_TICKS * self.period,
+                                                     self.params.odom_timeout)
         if fresh or waited or self.start_odom is None:
-            sim_s = (self._stop_ns - self.start_ns) / _NS
+            sim_s = (self._stop_ns - self.start_ns) / NS
             wall_s = time.monotonic() - self._wall_begun
             end_odom = self.odom if fresh else None
             achieved = self.summary(end_odom)
