@@ -14,11 +14,8 @@
 
 """``circle_back_and_forth``: move_rob.py's arc, retraced with both signs flipped."""
 
-import math
-
-from motion_challenges.plans import circle_end
+from motion_challenges.motion_node import rate_spec
 from motion_challenges.plans import circle_plan
-from motion_challenges.specs import rate_spec
 from motion_challenges.timed_motion import TimedMotion
 from sim_diffdrive.parameters import Spec
 from sim_diffdrive.runtime import run
@@ -54,16 +51,15 @@ class CircleBackAndForth(TimedMotion):
 
     def control(self, now_ns):
         command = super().control(now_ns)
-        t = self.elapsed(now_ns)
         p = self.params
-        cycle = math.floor(t / (2.0 * p.half_period)) + 1
-        leg = 'out' if (t % (2.0 * p.half_period)) < p.half_period else 'back'
+        cycles, into_cycle = divmod(self.elapsed(now_ns), 2.0 * p.half_period)
+        leg = 'out' if into_cycle < p.half_period else 'back'
         total = f' of {p.cycles}' if p.cycles else ''
-        self.progress(f'Cycle {cycle}{total}, driving {leg}')
+        self.progress(f'Cycle {int(cycles) + 1}{total}, driving {leg}')
         return command
 
     def goal_pose(self, start):
-        return circle_end((start.x, start.y, start.yaw))
+        return start.x, start.y, start.yaw  # each arc retraced: back where it started
 
 
 def main(args=None):

@@ -88,8 +88,7 @@ class CommandLog:
         """Return the robot's ((metres, radians), (linear, angular)) from since_ns to now_ns."""
         (linear, angular), (speed, turn_rate) = (0.0, 0.0), velocity
         linear_accel, angular_accel = accel
-        ends = itertools.chain(itertools.islice(self._entries, 1, None), ((now_ns,),))
-        for (start, v, w), (end, *_) in zip(self._entries, ends):
+        for (start, v, w), (end, *_) in itertools.pairwise([*self._entries, (now_ns,)]):
             overlap = (min(end, now_ns) - max(start, since_ns)) / NS
             if overlap > 0.0:
                 metres, speed = speed_ramp(speed, v, linear_accel, overlap)

@@ -128,19 +128,16 @@ def _build_motion(context, robot_ns, motion, parameter_overrides, participant):
         participant=participant,
         cli_args=['--ros-args', '-r', f'__ns:={robot_ns}', '-r', f'__node:={motion}'])
     if isinstance(node, RotateRobot):
-        with destroyed_if_refused(node):
-            _start_rotation(node)
-    return node
-
-
-def _start_rotation(node):
-    p = node.params
-    if node.missing_answers():
+        p = node.params
         missing = [name for name in ('angular_speed_deg', 'angle_deg', 'clockwise')
                    if getattr(p, name) is None]
-        raise ParameterError('rotate_robot asks nothing in a fleet: give ' + ', '.join(missing)
-                             + ' as parameters (-p, or a params file section for this robot)')
-    node.start(RotationRequest(p.angular_speed_deg, p.angle_deg, p.clockwise))
+        with destroyed_if_refused(node):
+            if missing:
+                raise ParameterError('rotate_robot asks nothing in a fleet: give '
+                                     + ', '.join(missing) + ' as parameters (-p, or a params '
+                                     'file section for this robot)')
+            node.start(RotationRequest(p.angular_speed_deg, p.angle_deg, p.clockwise))
+    return node
 
 
 class MotionFleet(Node):

@@ -24,17 +24,14 @@ import time
 
 from geometry_msgs.msg import Twist
 from geometry_msgs.msg import TwistStamped
-from motion_challenges.closing import closing_for
-from motion_challenges.closing import closing_line
-from motion_challenges.closing import DONE
 from motion_challenges.controllers import CommandLog
+from motion_challenges.controllers import NS
 from motion_challenges.controllers import odometry_fault
 from motion_challenges.controllers import Standstill
 from motion_challenges.plotting import write_plot
 from motion_challenges.robot_watch import MotionState
 from motion_challenges.robot_watch import RobotWatch
 from motion_challenges.robot_watch import WATCHDOG_PERIOD_S
-from motion_challenges.specs import COMMON_PARAMETERS
 from nav_msgs.msg import Odometry
 from rclpy.clock import Clock
 from rclpy.clock import ClockType
@@ -45,17 +42,74 @@ from sim_diffdrive.angles import YawAccumulator
 from sim_diffdrive.cdr import twist_message
 from sim_diffdrive.lockstep.participant import take_part
 from sim_diffdrive.parameters import declare
+from sim_diffdrive.parameters import Spec
 from sim_diffdrive.runtime import destroyed_if_refused
 from sim_diffdrive.runtime import EXIT_FAILED
 from sim_diffdrive.runtime import EXIT_OK
 from sim_diffdrive.throttle import Throttle
 
-__all__ = ['DONE', 'MotionNode', 'MotionState', 'closing_line']
-
-_NS = 1_000_000_000
 # How long to wait for the odometry that shows where the robot came to rest: this many control
 # periods, or odom_timeout if longer.
 _SETTLE_TICKS = 20
+# Every motion declares these besides its own.
+COMMON_PARAMETERS = (
+    Spec('start_timeout', 10.0,
+         'How long to wait for the robot (see wait_for_odom) before giving up [s, wall time], '
+         'from when the goal is known (typed).',
+         low=0.0, high=3600.0, low_open=True, live=True),
+    Spec('wait_for_odom', True,
+         'Start only once odometry has come and the node that publishes it subscribes cmd_vel '
+         '(the robot). false: any cmd_vel subscriber will do (a robot without odometry); the '
+         'open-loop motions then run blind and cannot confirm where the robot ended.'),
+    Spec('odom_timeout', 1.0,
+         'Stop and fail when no odometry came for this long mid-motion (closed loop), or, on '
+         'sim time, when simulated time stood still this long with no word from the simulator '
+         '[s, wall time].',
+         low=0.0, high=3600.0, low_open=True, live=True),
+    Spec('plot_file', '',
+         'Write a PNG of the run here: the path (start, end and goal) beside the heading and '
+         'the commanded and achieved speeds over time; empty = no plot. Needs matplotlib.',
+         live=True),
+    Spec('stamped', False,
+         'Publish geometry_msgs/TwistStamped, stamped with the node clock, instead of Twist '
+         "(ros2_control's diff_drive_controller takes only TwistStamped)."),
+    Spec('frame_id', 'base_footprint', 'With stamped: frame_id of the commands.', live=True),
+)
+# How a motion's closing line starts when it reached its goal (closing_line finds it).
+DONE = 'Done in '
+
+
+def rate_spec(default):
+    """Return the control rate parameter, rate_hz, with the motion's default."""
+    return Spec('rate_hz', default, 'Control rate [Hz] of the timer that publishes cmd_vel.',
+                low=0.0, high=1000.0, low_open=True)
+
+
+def closing_for(sim_s, wall_s, achieved, measured, wait_for_odom):
+    """
+    Return (exit code, closing line) of a run that stopped sim_s [s] (wall_s wall) after its start.
+
+    measured: whether odometry came after the stop.
+    """
+    if measured:
+        return EXIT_OK, f'{DONE}{sim_s:.3f} s ({wall_s:.3f} s wall): {achieved}'
+    if not wait_for_odom:
+        return EXIT_OK, (f'Sent the whole plan in {sim_s:.3f} s ({wall_s:.3f} s wall) to a '
+                         f'robot without odometry: {achieved}')
+    return EXIT_FAILED, (f'Stopped after {sim_s:.3f} s, but no odometry came after the stop: '
+                         'where the robot ended is unknown (is the simulator still running?)')
+
+
+def closing_line(output):
+    """Return a motion's closing line ('Done in ...') from its output, or its last error line."""
+    lines = output.splitlines()
+    for line in reversed(lines):
+        if DONE in line:
+            return line
+    for line in reversed(lines):
+        if '[ERROR]' in line or 'Error' in line:
+            return line
+    return lines[-1] if lines else ''
 
 
 class MotionNode(Node):
@@ -257,10 +311,10 @@ class MotionNode(Node):
         fresh = self.odom is not None and self.odom.stamp_ns > self._stop_ns
         # Long enough for a robot whose odometry is much slower than the control rate; on the
         # node clock, so a loaded machine on sim time waits no less.
-        waited = (now_ns - self._stop_ns) / _NS > max(_SETTLE_TICKS * self.period,
-                                                      self.params.odom_timeout)
+        waited = (now_ns - self._stop_ns) / NS > max(_SETTLE_TICKS * self.period,
+                                                     self.params.odom_timeout)
         if fresh or waited or self.start_odom is None:
-            sim_s = (self._stop_ns - self.start_ns) / _NS
+            sim_s = (self._stop_ns - self.start_ns) / NS
             wall_s = time.monotonic() - self._wall_begun
             end_odom = self.odom if fresh else None
             achieved = self.summary(end_odom)

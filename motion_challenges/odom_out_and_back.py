@@ -16,15 +16,14 @@
 
 import math
 
+from motion_challenges import timed_out_and_back
 from motion_challenges.controllers import Approach
 from motion_challenges.controllers import OutAndBack
 from motion_challenges.motion_node import MotionNode
-from motion_challenges.specs import out_and_back_specs
-from motion_challenges.timed_out_and_back import TimedOutAndBack
 from sim_diffdrive.parameters import Spec
 from sim_diffdrive.runtime import run
 
-PARAMETERS = out_and_back_specs(50.0) + (
+PARAMETERS = timed_out_and_back.PARAMETERS + (
     Spec('linear_accel', 0.5, 'Deceleration used to slow down near the goal distance [m/s^2].',
          low=0.0, high=100.0, low_open=True),
     Spec('angular_accel', 2.0, 'Deceleration used to slow down near the goal angle [rad/s^2].',
@@ -46,7 +45,7 @@ class OdomOutAndBack(MotionNode):
     """Out and back closed loop on odometry."""
 
     needs_odom = True
-    goal_pose = TimedOutAndBack.goal_pose  # the same legs, so the same end
+    goal_pose = timed_out_and_back.TimedOutAndBack.goal_pose  # the same legs, so the same end
 
     def __init__(self, **kwargs):
         super().__init__('odom_out_and_back', PARAMETERS, **kwargs)

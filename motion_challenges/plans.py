@@ -186,11 +186,6 @@ def rotation_end(start, angle, clockwise):
     return x, y, yaw - angle if clockwise else yaw + angle
 
 
-def circle_end(start):
-    """Return the pose circle_plan leads back to from start: start itself."""
-    return tuple(start)
-
-
 def out_and_back_end(start, goal_distance, goal_angle, legs):
     """Return the pose (x, y, yaw) the legs lead to from start (the start itself for pi x 2)."""
     x, y, yaw = start
@@ -273,13 +268,10 @@ def final_pose(plan, x=0.0, y=0.0, yaw=0.0, t_end=None):
     if not (math.isfinite(t_end) and t_end >= 0.0):
         raise ValueError(f't_end must be >= 0 and finite, got {t_end!r}')
     t = 0.0
-    while t < t_end and not plan.finished(t):
-        for segment in plan.segments:
-            dt = min(segment.duration, t_end - t)
-            if dt <= 0.0:
-                break
-            x, y, yaw = integrate(x, y, yaw, segment.linear, segment.angular, dt)
-            t += segment.duration
-        if not plan.repeat:
+    for segment in itertools.cycle(plan.segments) if plan.repeat else plan.segments:
+        dt = min(segment.duration, t_end - t)
+        if dt <= 0.0:
             break
+        x, y, yaw = integrate(x, y, yaw, segment.linear, segment.angular, dt)
+        t += segment.duration
     return x, y, normalize_angle(yaw)

@@ -54,12 +54,10 @@ RunSeries = namedtuple('RunSeries', [
 
 def unwrap_deg(yaws):
     """Return yaws [rad] as continuous degrees: no jump of 360 where the angle wraps."""
-    headings = []
+    headings, last = [], None
     for yaw in yaws:
-        if headings:
-            last = math.radians(headings[-1])
-            yaw = last + math.remainder(yaw - last, 2.0 * math.pi)
-        headings.append(math.degrees(yaw))
+        last = yaw if last is None else last + math.remainder(yaw - last, 2.0 * math.pi)
+        headings.append(math.degrees(last))
     return headings
 
 
@@ -98,12 +96,8 @@ def time_series(odometry, commands=(), start_ns=None, goal_yaw=None):
     heading = unwrap_deg([yaw for _, yaw, _, _ in odometry])
     command_t = [(stamp - start_ns) / _NS for stamp, *_ in commands]
     end = max(t[-1:] + command_t[-1:]) if t or command_t else None
-    goal_deg = None
-    if goal_yaw is not None:
-        goal_deg = math.degrees(goal_yaw)
-        if heading:
-            goal_deg = heading[-1] + math.degrees(
-                math.remainder(goal_yaw - math.radians(heading[-1]), 2.0 * math.pi))
+    goal_deg = None if goal_yaw is None else unwrap_deg(
+        [math.radians(last) for last in heading[-1:]] + [goal_yaw])[-1]
     return RunSeries(t, heading, [v for _, _, v, _ in odometry],
                      [math.degrees(w) for _, _, _, w in odometry],
                      step_series(command_t, [v for _, v, _ in commands], end),

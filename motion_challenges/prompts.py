@@ -15,6 +15,7 @@
 """Typed input for the rotate motion: a bad answer is explained and asked again (no ROS)."""
 
 from dataclasses import dataclass
+import functools
 import math
 
 MAX_ANGULAR_SPEED_DEG = 720.0
@@ -69,13 +70,12 @@ def _check_positive(value, shown, what, max_value):
 def parse_positive_number(text, what, max_value):
     """Parse a positive, finite number up to max_value; ``what`` names it in the ValueError."""
     stripped = text.strip()
-    accepted = _accepted(what, max_value)
     if not stripped:
-        raise ValueError(f'nothing was entered; {accepted}')
+        raise ValueError(f'nothing was entered; {_accepted(what, max_value)}')
     try:
         value = float(stripped)
     except ValueError:
-        raise ValueError(f'{_shown(stripped)} is not a number; {accepted}') from None
+        value = math.nan  # refused as 'not a number', as 'nan' typed is
     return _check_positive(value, _shown(stripped), what, max_value)
 
 
@@ -92,10 +92,7 @@ def parse_yes_no(text):
 
 def stream_writer(stream):
     """Return a write(text) that flushes, so a prompt shows before the input is read."""
-    def write(text):
-        stream.write(text)
-        stream.flush()
-    return write
+    return functools.partial(print, end='', file=stream, flush=True)
 
 
 def _ask(read_line, write, prompt, parse, missing):

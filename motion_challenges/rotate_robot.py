@@ -22,6 +22,7 @@ import math
 import sys
 
 from motion_challenges.controllers import SpinController
+from motion_challenges.motion_node import rate_spec
 from motion_challenges.plans import rotation_end
 from motion_challenges.plans import rotation_plan
 from motion_challenges.prompts import ask_rotation
@@ -29,7 +30,6 @@ from motion_challenges.prompts import InputEnded
 from motion_challenges.prompts import MAX_ANGLE_DEG
 from motion_challenges.prompts import MAX_ANGULAR_SPEED_DEG
 from motion_challenges.prompts import stream_writer
-from motion_challenges.specs import rate_spec
 from motion_challenges.timed_motion import TimedMotion
 from sim_diffdrive.parameters import Spec
 from sim_diffdrive.runtime import destroyed_if_refused
@@ -68,10 +68,6 @@ class RotateRobot(TimedMotion):
         self.robot_accel = (0.0, math.radians(self.params.robot_angular_accel_deg))
         self.request = None
 
-    def missing_answers(self):
-        p = self.params
-        return p.angular_speed_deg is None or p.angle_deg is None or p.clockwise is None
-
     def start(self, request):
         """Set the goal (from parameters and answers) and begin waiting for the robot."""
         p = self.params
@@ -81,7 +77,6 @@ class RotateRobot(TimedMotion):
         self.spin = SpinController(
             self.goal, request.clockwise, self.speed, math.radians(p.min_angular_speed_deg),
             math.radians(p.angular_accel_deg), self.period, robot_accel=self.robot_accel[1])
-        self.sign = self.spin.sign
         self.get_logger().info(
             f'Rotating {request.angle_deg:g} deg '
             f'{"clockwise" if request.clockwise else "counter-clockwise"} at '
@@ -105,10 +100,10 @@ class RotateRobot(TimedMotion):
         return command
 
     def goal_pose(self, start):
-        return rotation_end((start.x, start.y, start.yaw), self.goal, self.sign < 0)
+        return rotation_end((start.x, start.y, start.yaw), self.goal, self.request.clockwise)
 
     def summary(self, end_odom):
-        goal_deg = self.sign * self.request.angle_deg
+        goal_deg = self.spin.sign * self.request.angle_deg
         if end_odom is None:
             return f'commanded {goal_deg:.4f} deg; no odometry, achieved angle unknown'
         turned_deg = math.degrees(self.turned.total)

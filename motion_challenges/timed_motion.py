@@ -14,10 +14,9 @@
 
 """The open-loop motions' base: follow a PiecewisePlan (plans.py) on the node clock."""
 
+from motion_challenges.controllers import NS
 from motion_challenges.motion_node import MotionNode
 from motion_challenges.robot_watch import MotionState
-
-_NS = 1_000_000_000
 
 
 class TimedMotion(MotionNode):
@@ -38,7 +37,7 @@ class TimedMotion(MotionNode):
         self._end_timer = None
 
     def elapsed(self, now_ns):
-        return (now_ns - self.start_ns) / _NS
+        return (now_ns - self.start_ns) / NS
 
     def control(self, now_ns):
         t = self.elapsed(now_ns)
@@ -60,7 +59,7 @@ class TimedMotion(MotionNode):
         if not step_ns or due_ns is None:
             return self.period
         # The clock reaches the next tick's time in whole steps of its last step's size.
-        return -(-due_ns // step_ns) * step_ns / _NS
+        return -(-due_ns // step_ns) * step_ns / NS
 
     def _on_plan_end(self):
         self._end_timer.cancel()

@@ -16,18 +16,32 @@
 
 import math
 
+from motion_challenges.motion_node import rate_spec
 from motion_challenges.plans import out_and_back_end
 from motion_challenges.plans import out_and_back_plan
-from motion_challenges.specs import out_and_back_specs
 from motion_challenges.timed_motion import TimedMotion
+from sim_diffdrive.parameters import Spec
 from sim_diffdrive.runtime import run
+
+# odom_out_and_back shares these.
+PARAMETERS = (
+    Spec('goal_distance', 1.0, 'Distance of each straight leg [m].',
+         low=0.0, high=1000.0, low_open=True),
+    Spec('linear_speed', 0.2, 'Forward speed [m/s].', low=0.0, high=10.0, low_open=True),
+    Spec('angular_speed', 1.0, 'Turn rate [rad/s].', low=0.0, high=10.0, low_open=True),
+    Spec('goal_angle', math.pi, 'Angle of each turn [rad], counter-clockwise.',
+         low=0.0, high=100.0, low_open=True),
+    Spec('legs', 2, 'Number of drive-and-turn legs.', low=1, high=1000),
+    Spec('pause', 1.0, 'Pause after each stop [s].', low=0.0, high=3600.0),
+    rate_spec(50.0),
+)
 
 
 class TimedOutAndBack(TimedMotion):
     """Out and back on the clock."""
 
     def __init__(self, **kwargs):
-        super().__init__('timed_out_and_back', out_and_back_specs(50.0), **kwargs)
+        super().__init__('timed_out_and_back', PARAMETERS, **kwargs)
         p = self.params
         self.get_logger().info(
             f'{p.legs} leg(s): {p.goal_distance:g} m at {p.linear_speed:g} m/s, turn '
