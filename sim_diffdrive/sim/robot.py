@@ -26,6 +26,7 @@ from collections import deque
 import math
 import struct
 
+from builtin_interfaces.msg import Time as TimeMsg
 from geometry_msgs.msg import PoseStamped
 from geometry_msgs.msg import PoseWithCovarianceStamped
 from geometry_msgs.msg import Twist
@@ -34,7 +35,6 @@ from nav_msgs.msg import Odometry
 from nav_msgs.msg import Path
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.serialization import deserialize_message
-from rclpy.time import Time
 from sim_diffdrive.angles import yaw_from_quaternion
 from sim_diffdrive.cdr import read_twist
 from sim_diffdrive.cdr import read_twist_stamped
@@ -249,12 +249,17 @@ class Robot:
         if self.path_pub.get_subscription_count() == 0 and not taps.wants_path:
             return  # converting a long path to a message is the costliest thing here
         path = Path()
-        path.header.stamp = Time(nanoseconds=stamp_ns).to_msg()
+        path.header.stamp = _stamp(stamp_ns)
         path.header.frame_id = self.odom_frame
         path.poses = self.path.messages(self.odom_frame)
         self.path_pub.publish(path)
         if taps:
             taps.write(self.path_pub.topic_name, path, stamp_ns)
+
+
+def _stamp(stamp_ns):
+    sec, nanosec = divmod(stamp_ns, _NS)
+    return TimeMsg(sec=sec, nanosec=nanosec)
 
 
 def _twist_fields(msg):
@@ -303,7 +308,7 @@ class DrivenPath:
             stamp_ns, x, y, qz, qw = self._poses[i]
             pose = PoseStamped()
             pose.header.frame_id = frame_id
-            pose.header.stamp = Time(nanoseconds=stamp_ns).to_msg()
+            pose.header.stamp = _stamp(stamp_ns)
             pose.pose.position.x, pose.pose.position.y = x, y
             pose.pose.orientation.z, pose.pose.orientation.w = qz, qw
             self._messages.append(pose)
