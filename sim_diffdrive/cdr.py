@@ -31,8 +31,7 @@ ENCAPSULATION = b'\x00\x01\x00\x00'
 _BODY = len(ENCAPSULATION)
 # Encapsulation kinds read here (the second byte; the first is 0): byte order of each.
 _BYTE_ORDER = {0: '>', 1: '<'}
-_LE_STAMP = struct.Struct('<iI')
-_LE_TWIST = struct.Struct('<d32xd')  # linear.x, (linear.y, .z, angular.x, .y), angular.z
+_TWIST = 'd32xd'  # linear.x, (linear.y, .z, angular.x, .y), angular.z
 # Odometry after its frames (8-byte aligned): pose (position 3, orientation 4, covariance 36
 # doubles), twist (linear 3, angular 3, covariance 36 doubles).
 _POSE_DOUBLES = 7
@@ -79,13 +78,12 @@ def _byte_order(data):
 
 def clock_message(stamp_ns):
     """Return the CDR bytes of a rosgraph_msgs/Clock at stamp_ns (floor seconds, nanoseconds)."""
-    return ENCAPSULATION + _LE_STAMP.pack(*divmod(stamp_ns, _NS))
+    return ENCAPSULATION + struct.pack('<iI', *divmod(stamp_ns, _NS))
 
 
 def header_stamp_ns(data):
     """Return the stamp [ns] of a message whose first field is a std_msgs/Header."""
-    order = _byte_order(data)
-    sec, nanosec = (_LE_STAMP if order == '<' else struct.Struct('>iI')).unpack_from(data, _BODY)
+    sec, nanosec = struct.unpack_from(_byte_order(data) + 'iI', data, _BODY)
     return sec * _NS + nanosec
 
 
@@ -107,14 +105,12 @@ def read_string(data):
 
 def twist_message(linear, angular):
     """Return the CDR bytes of a geometry_msgs/Twist of linear.x and angular.z."""
-    return ENCAPSULATION + _LE_TWIST.pack(linear, angular)
+    return ENCAPSULATION + struct.pack('<' + _TWIST, linear, angular)
 
 
 def read_twist(data):
     """Return (linear.x, angular.z) of a geometry_msgs/Twist's bytes."""
-    if _byte_order(data) == '<':
-        return _LE_TWIST.unpack_from(data, _BODY)
-    return struct.unpack_from('>d32xd', data, _BODY)
+    return struct.unpack_from(_byte_order(data) + _TWIST, data, _BODY)
 
 
 def read_twist_stamped(data):
@@ -123,7 +119,7 @@ def read_twist_stamped(data):
     sec, nanosec, length = struct.unpack_from(order + 'iII', data, _BODY)
     # The twist follows the frame_id string, its doubles aligned to 8 within the body.
     twist = _BODY + ((12 + length + 7) & ~7)
-    linear, angular = struct.unpack_from(order + 'd32xd', data, twist)
+    linear, angular = struct.unpack_from(order + _TWIST, data, twist)
     return sec * _NS + nanosec, linear, angular
 
 
@@ -144,7 +140,7 @@ def read_odometry(data):
         offset += 4 + length
     offset += -(offset - _BODY) % 8
     pose = struct.unpack_from(order + '7d', data, offset)
-    twist = struct.unpack_from(order + 'd32xd', data, offset + 8 * _LINEAR_X)
+    twist = struct.unpack_from(order + _TWIST, data, offset + 8 * _LINEAR_X)
     return sec * _NS + nanosec, frames[0], frames[1], pose[:3], pose[3:], twist
 
 

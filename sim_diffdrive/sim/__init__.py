@@ -12,10 +12,4 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""
-The simulator: its node, its robots, the pure world that owns their state.
-
-The ``unicycle_sim`` node (node.py) and its clock modes (clock.py), each robot's topics
-(robot.py), the map, scans and map -> odom on the ROS side (surroundings.py), and the world
-(world.py) that owns every robot's state and steps it (no ROS).
-"""
+"""The simulator: the ``unicycle_sim`` node, its clocks, robots, surroundings, the pure world."""

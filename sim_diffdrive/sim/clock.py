@@ -44,10 +44,8 @@ _REACTION_DECAY = 0.98
 # In lockstep the clock timer paces and watches for laggards (answers drive the steps), so it
 # need not fire more often than this [s]; without members it catches up in bursts.
 _LOCKSTEP_TICK_S = 0.0005
-# With members, a step shorter than its budget is paced by news (the answer that settles it
-# waits out the rest of the budget), so the timer only watches: re-sends after 10 ms or more,
-# timeouts of seconds.  Faster, its ticks cost the simulator more CPU than the step's
-# messages (2-4 ticks per step at real_time_factor 100) [s].
+# With members, news paces a step shorter than its budget, so the timer only watches (re-sends
+# after 10 ms or more, timeouts of seconds); ticking faster costs more than the step [s].
 _WATCH_TICK_S = 0.002
 # How often a simulator that owns time looks for another publisher on its clock topic [s, wall]:
 # at a high real_time_factor a graph query every step would cost more than the step.
@@ -78,8 +76,7 @@ class FollowedClock:
 
     def __init__(self, sim):
         self.sim = sim
-        # This robot's side of another simulator's lockstep, when it runs on one's /clock.
-        self.participant = None
+        self.participant = None  # its side of another simulator's lockstep, on its /clock
         self._clock = sim.get_clock()
         # use_sim_time is read-only here (parameters.py): the clock is chosen once.
         self._wall = not sim.get_parameter('use_sim_time').value

@@ -329,11 +329,8 @@ class UnicycleSim(Node):
         if tapping:
             for robot, data in zip(robots, odometry):
                 taps.write(robot.odom_pub.topic_name, data, stamp_ns)
-        # /tf only while someone listens: a step costs its messages, and this is one of three.
-        if self._tf is not None and (tapping or self._tf.publisher.get_subscription_count()):
-            data = self._tf.publish(sec, nanosec, x, y, qz, qw)
-            if tapping:
-                taps.write(self._tf.publisher.topic_name, data, stamp_ns)
+        if self._tf is not None:
+            self._tf.publish(stamp_ns, x, y, qz, qw, taps)
         if self.surroundings:
             self.surroundings.publish(stamp_ns, world, taps)
         if tapping:

@@ -26,6 +26,7 @@ from sim_diffdrive.cdr import TransformLayout
 from sim_diffdrive.parameters import ParameterError
 from tf2_msgs.msg import TFMessage
 
+_NS = 1_000_000_000
 TF_TOPIC = '/tf'
 # What tf2_ros's TransformBroadcaster uses (DynamicBroadcasterQoS): reliable, volatile, 100 deep.
 TF_QOS = QoSProfile(depth=100)
@@ -103,8 +104,11 @@ class OdomTransform:
         """Lay the bytes out anew for frames, (frame_id, child_frame_id) per robot."""
         self._layout = TransformLayout(list(frames))
 
-    def publish(self, sec, nanosec, x, y, qz, qw):
-        """Publish every robot's pose (arrays or lists, one entry per robot) at sec.nanosec."""
-        data = self._layout.serialize(sec, nanosec, x, y, qz, qw)
-        self.publisher.publish(data)
-        return data
+    def publish(self, stamp_ns, x, y, qz, qw, taps):
+        """Publish (and tap) every robot's pose (one entry each) at stamp_ns, if anyone listens."""
+        # Only while someone listens: a step costs its messages.
+        if taps or self.publisher.get_subscription_count():
+            data = self._layout.serialize(*divmod(stamp_ns, _NS), x, y, qz, qw)
+            self.publisher.publish(data)
+            if taps:
+                taps.write(self.publisher.topic_name, data, stamp_ns)

@@ -42,7 +42,6 @@ from sim_diffdrive.world.scan import Scanner
 from std_msgs.msg import Header
 from tf2_msgs.msg import TFMessage
 
-_NS = 1_000_000_000
 # As map_server's map and tf2_ros's StaticTransformBroadcaster: reliable, kept for late comers.
 LATCHED_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 # Reliable: it serves Nav2's best-effort (SensorDataQoS) subscribers as well.
@@ -149,14 +148,8 @@ class Surroundings:
 
     def publish(self, stamp_ns, world, taps):
         """Publish map -> odom with this step's odometry, and the scans when they are due."""
-        tf_pub = self._map_tf.publisher
-        if taps or tf_pub.get_subscription_count():  # only while someone listens
-            sec, nanosec = divmod(stamp_ns, _NS)
-            half = 0.5 * world.map_yaw
-            data = self._map_tf.publish(sec, nanosec, world.map_x, world.map_y, np.sin(half),
-                                        np.cos(half))
-            if taps:
-                taps.write(tf_pub.topic_name, data, stamp_ns)
+        half = 0.5 * world.map_yaw
+        self._map_tf.publish(stamp_ns, world.map_x, world.map_y, np.sin(half), np.cos(half), taps)
         due = self._scan_every and self._steps % self._scan_every == 0
         self._steps += 1
         if not due:

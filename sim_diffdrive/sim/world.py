@@ -35,9 +35,9 @@ from sim_diffdrive.kinematics import integrate
 from sim_diffdrive.kinematics import integrate_all
 from sim_diffdrive.kinematics import limit_command
 from sim_diffdrive.kinematics import normalize_angles
+from sim_diffdrive.world.contact import earliest_touch
 from sim_diffdrive.world.contact import overlaps_robot
-from sim_diffdrive.world.tracks import earliest_touch
-from sim_diffdrive.world.tracks import Track
+from sim_diffdrive.world.contact import Track
 
 _NS = 1_000_000_000
 # In World.deadline_ns: no cmd_vel timeout pending.
