@@ -21,6 +21,7 @@ import signal
 import sys
 import time
 
+from geometry_msgs.msg import Twist
 import pytest
 import rclpy
 from rclpy.context import Context
@@ -190,6 +191,31 @@ def test_removing_a_node_waits_for_its_own_publishers_only(ros_context, graph):
         elsewhere.destroy_node()
     finally:
         rclpy.try_shutdown(context=other)
+
+
+def test_a_removed_node_never_runs_a_callback_once_destroyed(graph):
+    # Messages reach a relay's subscription, which republishes each, while the graph does not
+    # spin: the executor has queued their events when the relay is removed.  Run after the
+    # relay was destroyed, the callback's publish raised InvalidHandle out of remove().
+    talker = graph.probe('talker', listen_only=True)
+    chatter = talker.create_publisher(Twist, 'chatter', 10)
+    for i in range(3):
+        relay = graph.probe(f'relay{i}', listen_only=True)
+        echo = relay.create_publisher(Twist, 'echo', 10)
+        handled = []
+
+        def republish(msg, echo=echo, handled=handled):
+            echo.publish(msg)
+            handled.append(msg)
+        relay.create_subscription(Twist, 'chatter', republish, 10)
+        while not handled:  # until the relay hears the talker
+            chatter.publish(Twist())
+            graph.spin_until(lambda: handled, 0.05)
+        for _ in range(5):
+            chatter.publish(Twist())
+        time.sleep(0.1)  # delivered, not handled
+        assert graph.remove(relay)
+        assert relay not in graph.nodes
 
 
 def test_one_stepped_simulator_per_graph_and_it_owns_the_clock(graph):

@@ -104,6 +104,11 @@ class Lockstep:
         ours = collections.Counter(pub.topic_name for pub in node.publishers)
         left = {topic: node.count_publishers(topic) - count for topic, count in ours.items()}
         self.executor.remove_node(node)
+        # An EventsExecutor lets go of a removed node's entities when it next runs, after the
+        # events it has queued for them: a task queued now runs after both.  Destroyed before,
+        # the node would have its callbacks run on its destroyed publishers and timers.
+        released = self.executor.create_task(lambda: None)
+        self.spin_until(released.done, 10.0, poll=0.005)
         self.nodes.remove(node)
         if node is self.clock_owner:
             self.clock_owner = None
