@@ -477,6 +477,10 @@ def test_simulator_restarted_mid_motion_is_noticed(graph, procs):
         if proc.poll() is None:
             problems.append(f'{case.name}: did not notice\n{proc.describe()}')
             continue
+        if case.killed_at is None:  # what it noticed was not the kill: a stall of the simulator?
+            problems.append(f'{case.name}: the motion ended before its simulator was killed'
+                            f'\n{proc.describe()}\n{case.sim_proc.describe()}')
+            continue
         if (proc.poll() != 1 or not any(text in output for text in case.expected)
                 or 'Traceback' in output):
             problems.append(f'{case.name}: exit code {proc.poll()}, expected 1 and one of '
@@ -484,7 +488,9 @@ def test_simulator_restarted_mid_motion_is_noticed(graph, procs):
         # The killed simulator's subscriptions stay in discovery (its lease runs for seconds):
         # the motion cannot know that its final stop was heard, and says so.
         if not case.restart and 'Not acknowledged within' not in output:
-            problems.append(f'{case.name}: no word of the unacknowledged stop\n{output}')
+            problems.append(f'{case.name}: no word of the unacknowledged stop (the simulator '
+                            f'was killed {proc.exited_at - case.killed_at:.2f} s before the '
+                            f'motion exited)\n{output}')
         if case.restart:
             settle = time.monotonic()
             graph.spin_until(lambda: len(at_rest_since(case.watcher.after(
