@@ -488,9 +488,11 @@ def test_simulator_restarted_mid_motion_is_noticed(graph, procs):
         # The killed simulator's subscriptions stay in discovery (its lease runs for seconds):
         # the motion cannot know that its final stop was heard, and says so.
         if not case.restart and 'Not acknowledged within' not in output:
+            readers = graph.nodes[0].count_subscribers(f'{_PREFIX}_{case.name}/cmd_vel')
             problems.append(f'{case.name}: no word of the unacknowledged stop (the simulator '
                             f'was killed {proc.exited_at - case.killed_at:.2f} s before the '
-                            f'motion exited)\n{output}')
+                            f'motion exited; cmd_vel readers in the graph now: {readers})'
+                            f'\n{output}')
         if case.restart:
             settle = time.monotonic()
             graph.spin_until(lambda: len(at_rest_since(case.watcher.after(
