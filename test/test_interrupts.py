@@ -491,8 +491,7 @@ def test_simulator_restarted_mid_motion_is_noticed(graph, procs):
             readers = graph.nodes[0].count_subscribers(f'{_PREFIX}_{case.name}/cmd_vel')
             problems.append(f'{case.name}: no word of the unacknowledged stop (the simulator '
                             f'was killed {proc.exited_at - case.killed_at:.2f} s before the '
-                            f'motion exited; cmd_vel readers in the graph now: {readers})'
-                            f'\n{output}')
+                            f'motion exited; cmd_vel readers seen now: {readers})\n{output}')
         if case.restart:
             settle = time.monotonic()
             graph.spin_until(lambda: len(at_rest_since(case.watcher.after(
