@@ -329,7 +329,7 @@ class UnicycleSim(Node):
         if tapping:
             for robot, data in zip(robots, odometry):
                 taps.write(robot.odom_pub.topic_name, data, stamp_ns)
-        if self._tf is not None:
+        if self._tf is not None and self._tf.listened(taps):
             self._tf.publish(stamp_ns, x, y, qz, qw, taps)
         if self.surroundings:
             self.surroundings.publish(stamp_ns, world, taps)

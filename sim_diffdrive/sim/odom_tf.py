@@ -104,11 +104,13 @@ class OdomTransform:
         """Lay the bytes out anew for frames, (frame_id, child_frame_id) per robot."""
         self._layout = TransformLayout(list(frames))
 
+    def listened(self, taps):
+        """Return whether anyone takes the transforms: publish only then (a step costs them)."""
+        return bool(taps) or self.publisher.get_subscription_count() > 0
+
     def publish(self, stamp_ns, x, y, qz, qw, taps):
-        """Publish (and tap) every robot's pose (one entry each) at stamp_ns, if anyone listens."""
-        # Only while someone listens: a step costs its messages.
-        if taps or self.publisher.get_subscription_count():
-            data = self._layout.serialize(*divmod(stamp_ns, _NS), x, y, qz, qw)
-            self.publisher.publish(data)
-            if taps:
-                taps.write(self.publisher.topic_name, data, stamp_ns)
+        """Publish (and tap) every robot's pose (one entry each) at stamp_ns."""
+        data = self._layout.serialize(*divmod(stamp_ns, _NS), x, y, qz, qw)
+        self.publisher.publish(data)
+        if taps:
+            taps.write(self.publisher.topic_name, data, stamp_ns)

@@ -148,8 +148,10 @@ class Surroundings:
 
     def publish(self, stamp_ns, world, taps):
         """Publish map -> odom with this step's odometry, and the scans when they are due."""
-        half = 0.5 * world.map_yaw
-        self._map_tf.publish(stamp_ns, world.map_x, world.map_y, np.sin(half), np.cos(half), taps)
+        if self._map_tf.listened(taps):
+            half = 0.5 * world.map_yaw
+            self._map_tf.publish(stamp_ns, world.map_x, world.map_y, np.sin(half), np.cos(half),
+                                 taps)
         due = self._scan_every and self._steps % self._scan_every == 0
         self._steps += 1
         if not due:
