@@ -208,9 +208,11 @@ def test_a_removed_node_never_runs_a_callback_once_destroyed(graph):
             echo.publish(msg)
             handled.append(msg)
         relay.create_subscription(Twist, 'chatter', republish, 10)
-        while not handled:  # until the relay hears the talker
+        for _ in range(100):  # until the relay hears the talker
             chatter.publish(Twist())
-            graph.spin_until(lambda: handled, 0.05)
+            if graph.spin_until(lambda: handled, 0.05):
+                break
+        assert handled, 'the relay never heard the talker'
         for _ in range(5):
             chatter.publish(Twist())
         time.sleep(0.1)  # delivered, not handled
