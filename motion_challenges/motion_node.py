@@ -212,6 +212,13 @@ class MotionNode(Node):
                     self.get_logger().warning(
                         f'Not acknowledged within {self.stop_ack_timeout:g} s: {unheard} (a '
                         'subscriber is gone or stalled, or the link is lossy)')
+                else:
+                    self.get_logger().debug(
+                        'Final stop acknowledged by the '
+                        f'{self.cmd_pub.get_subscription_count()} subscriber(s) of cmd_vel')
+        else:
+            self.get_logger().warning('ROS was shut down before the final stop: the robot was '
+                                      'not told to stop')
 
     def now_ns(self):
         return self.get_clock().now().nanoseconds

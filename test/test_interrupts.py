@@ -114,9 +114,8 @@ def at_rest_since(odoms):
     Return the odometry at rest that odoms end with (after the last that shows motion).
 
     On a busy machine odometry from before the final stop can still arrive after the exit (a
-    pause, then the start of the next segment the motion began before it handled the signal).
-    The simulators keep the last command (cmd_vel_timeout 0), so a robot set moving again
-    after the final stop would never be at rest again.
+    pause, then the start of the next segment the motion began before it handled the signal);
+    a robot set moving again after the final stop is never at rest again (check_stopped).
     """
     last_moving = max((i for i, o in enumerate(odoms) if moving(o)), default=-1)
     return odoms[last_moving + 1:]
@@ -457,7 +456,8 @@ def test_simulator_restarted_mid_motion_is_noticed(graph, procs):
         # is what the case without a restart shows.
         timeout = () if not case.restart else ('odom_timeout:=30.0',)
         case.motion_proc = procs(f'{case.name}_motion', name, *ros_args(
-            namespace, *params, *timeout, sim_time=case.sim_time))
+            namespace, *params, *timeout, sim_time=case.sim_time),
+            '--log-level', f'{namespace[1:]}.{name}:=debug')  # what the stop's wait found
 
     def step():
         for case in cases:
