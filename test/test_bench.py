@@ -174,14 +174,15 @@ def test_quick_run_writes_every_row(tmp_path):
     assert tuple(rows['rtf_processes']['rtf']) == sizes.process_motions
     assert rows['rtf_processes']['round_trip_us'] > 0.0
     assert rows['rtf_processes']['bare_step_us'] > 0.0  # (NaN, from no bare steps, is not)
-    assert rows['rtf_processes']['step_over_round_trip'] > 0.0
+    assert rows['rtf_processes']['step_over_round_trip'] > 0.0, rows['rtf_processes']['untimed']
     assert rows['latency']['samples'] + rows['latency']['lost'] == sizes.latency_samples
     assert rows['cpu_idle']['idle_percent'] >= 0.0
     assert rows['cpu_idle']['rclpy_floor_percent'] > 0.0
     assert rows['cpu_idle']['publish_floor_percent'] > 0.0
     assert rows['cpu_idle']['sleep_floor_percent'] > 0.0
-    # The idle simulator's main thread sleeps between steps and wakes for each.
-    assert rows['cpu_idle']['wakes_per_step']['main'] > 0.5
+    # Wakes per step by thread (voluntary, counted only when some happened): how many depends
+    # on the load; a busy machine's behind simulator runs several steps a wake, or none.
+    assert all(count > 0.0 for count in rows['cpu_idle']['wakes_per_step'].values())
     assert tuple(rows['scaling_one_process']['rtf']) == tuple(map(str, sizes.robots))
     assert tuple(rows['scaling_processes']['rtf']) == tuple(map(str, sizes.robots_processes))
     # Many robots in one simulator (rows 13-18): every count measured, sane, motions exact.

@@ -156,6 +156,11 @@ def watch_motion(graph, start, stop, motion, rtf, **sim_params):
             result['sim_s'] = (harness.stamp_s(probe.odoms[after])
                                - harness.stamp_s(probe.odoms[before]))
             result['wall_s'] = probe.odom_walls[after] - probe.odom_walls[before]
+        else:  # why the run could not be timed, with what both processes said
+            result['untimed'] = (
+                f'{len(probe.odoms)} odometry heard, {len(moving)} of it moving, the last '
+                f'{"moving" if moving and moving[-1] + 1 == len(probe.odoms) else "at rest"}:\n'
+                + '\n'.join(core.tail(log) for log in logs))
     return result
 
 
@@ -214,6 +219,7 @@ def rtf_processes(run):
          'answers_per_step': answers, 'round_trip_us': float(round_trip_us),
          'round_trip_p90_us': float(p90_us), 'bare_step_us': float(bare_us),
          'step_us': step_us, 'step_over_round_trip': ratio,
+         'untimed': [r['untimed'] for rs in results.values() for r in rs if 'untimed' in r],
          'failure_logs': [core.tail(r['log']) for rs in results.values() for r in rs
                           if r['exit']]})
 
