@@ -174,7 +174,8 @@ def test_quick_run_writes_every_row(tmp_path):
     assert tuple(rows['rtf_processes']['rtf']) == sizes.process_motions
     assert rows['rtf_processes']['round_trip_us'] > 0.0
     assert rows['rtf_processes']['bare_step_us'] > 0.0  # (NaN, from no bare steps, is not)
-    assert rows['rtf_processes']['step_over_round_trip'] > 0.0, rows['rtf_processes']['untimed']
+    ratio = rows['rtf_processes']['step_over_round_trip']
+    assert ratio is not None and ratio > 0.0, rows['rtf_processes']['untimed']
     assert rows['latency']['samples'] + rows['latency']['lost'] == sizes.latency_samples
     assert rows['cpu_idle']['idle_percent'] >= 0.0
     assert rows['cpu_idle']['rclpy_floor_percent'] > 0.0

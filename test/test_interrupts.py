@@ -15,8 +15,7 @@
 """
 A motion interrupted as a user meets it: killed, Ctrl-C, SIGTERM, its simulator restarted.
 
-Ctrl-C and SIGTERM come at every phase; the simulator is killed and restarted under a closed
-loop.
+Ctrl-C and SIGTERM come at every phase; a closed loop's simulator is killed, or restarted.
 
 Several scenarios run at once, each in its own ROS namespace.  Those on sim time share one
 simulator process, a robot each (its ``robots`` parameter), and its lockstep, with ``/clock``
@@ -484,7 +483,8 @@ def test_simulator_restarted_mid_motion_is_noticed(graph, procs):
         if (proc.poll() != 1 or not any(text in output for text in case.expected)
                 or 'Traceback' in output):
             problems.append(f'{case.name}: exit code {proc.poll()}, expected 1 and one of '
-                            f'{case.expected}\n{proc.describe()}')
+                            f'{case.expected}\n' + '\n'.join(p.describe() for p in (
+                                proc, case.sim_proc, case.new_sim) if p is not None))
         # The killed simulator's subscriptions stay in discovery (its lease runs for seconds):
         # the motion cannot know that its final stop was heard, and says so.
         if not case.restart and 'Not acknowledged within' not in output:
