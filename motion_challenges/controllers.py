@@ -103,8 +103,9 @@ def odometry_fault(last, pose, commands, tolerance=JUMP_TOLERANCE, velocity=(0.0
     """
     Return why odometry pose cannot follow odometry last, or '' when it can.
 
-    Time must not go back, nor the robot move further than commanded, nor turn more or the
-    other way, as a restarted simulator back at its initial pose would.
+    Time must not go back, nor the robot move or turn further than commanded, nor the other
+    way, as a restarted simulator back at its initial pose would (even one whose clock has run
+    ahead, allowing for the distance).
     """
     if pose.stamp_ns < last.stamp_ns:
         return (f'Odometry went back in time from {last.stamp_ns / NS:.3f} s to '
@@ -112,13 +113,21 @@ def odometry_fault(last, pose, commands, tolerance=JUMP_TOLERANCE, velocity=(0.0
     (metres, radians), _ = commands.predict(last.stamp_ns, pose.stamp_ns, velocity, accel)
     moved = pose.distance_to(last)
     turned = math.remainder(pose.yaw - last.yaw, 2.0 * math.pi)
-    # The robot may turn less than commanded (or not at all), but not more, nor the other way.
+    # How far along its heading: an arc's chord points half its turn ahead of the start.
+    chord = last.yaw + 0.5 * turned
+    ahead = (pose.x - last.x) * math.cos(chord) + (pose.y - last.y) * math.sin(chord)
+    # The robot may move and turn less than commanded (or not at all), but not more, nor the
+    # other way.
     if (moved > 1.5 * abs(metres) + tolerance
-            or not (min(0.0, 1.5 * radians) - tolerance <= turned
-                    <= max(0.0, 1.5 * radians) + tolerance)):
+            or not _within(ahead, metres, tolerance) or not _within(turned, radians, tolerance)):
         return (f'Odometry jumped {moved:.3f} m and {math.degrees(abs(turned)):.1f} deg '
                 'between two messages')
     return ''
+
+
+def _within(done, commanded, tolerance):
+    """Return whether done lies between 0 and 1.5 times commanded, give or take tolerance."""
+    return min(0.0, 1.5 * commanded) - tolerance <= done <= max(0.0, 1.5 * commanded) + tolerance
 
 
 class Standstill:

@@ -290,6 +290,20 @@ def test_a_jump_or_a_turn_the_wrong_way_is_a_fault(x, yaw):
     assert fault.startswith('Odometry jumped')
 
 
+def test_a_restarted_simulator_whose_clock_ran_ahead_is_a_fault():
+    # 0.2 m into a drive at 0.2 m/s, the next odometry is 3 s later and back at the start:
+    # closer than the 0.6 m commanded meanwhile, but behind the robot.
+    last, pose = Pose(0.2, 0.0, 0.0, 1 * NS), Pose(0.0, 0.0, 0.0, 4 * NS)
+    assert odometry_fault(last, pose, driving_log(0.2, 0.0)).startswith('Odometry jumped 0.200')
+    # The same step forward, and along an arc (the chord half the turn ahead), is no fault.
+    assert odometry_fault(last, Pose(0.4, 0.0, 0.0, 4 * NS), driving_log(0.2, 0.0)) == ''
+    x, y, yaw = integrate(0.2, 0.0, 0.0, 0.2, 0.5, 3.0)
+    assert odometry_fault(last, Pose(x, y, yaw, 4 * NS), driving_log(0.2, 0.5)) == ''
+    # Backing up as commanded is no fault; backing up when told to go forward is.
+    assert odometry_fault(last, Pose(0.0, 0.0, 0.0, 4 * NS), driving_log(-0.2, 0.0)) == ''
+    assert odometry_fault(last, Pose(0.4, 0.0, 0.0, 4 * NS), driving_log(-0.2, 0.0)) != ''
+
+
 def test_a_robot_still_slowing_down_is_no_jump_when_its_limit_is_known():
     # At 2 m/s, commanded 0, slowing at 1 m/s^2: 0.0398 m in the next 20 ms.
     log = driving_log(0.0, 0.0)
