@@ -33,6 +33,7 @@ from rclpy.experimental import EventsExecutor
 from rclpy.impl.implementation_singleton import rclpy_implementation
 from rclpy.signals import SignalHandlerOptions
 from sim_diffdrive.dds_profile import use_package_profile
+from sim_diffdrive.dds_teardown import ParticipantHold
 from sim_diffdrive.parameters import ParameterError
 
 EXIT_OK = 0
@@ -42,8 +43,8 @@ EXIT_USAGE = 2
 # Bounds how long a signal waits for Python's handler while the executor sleeps in rcl.
 _SPIN_TIMEOUT = 0.1
 # How long destroying the nodes and shutting rclpy down may take [s] before the process ends
-# anyway, with every thread's stack and exit code 1: Fast DDS can spin for ever deleting its
-# participant while a discovery callback of a peer's departure is in flight.
+# anyway, with every thread's stack and exit code 1.  Fast DDS spun for ever deleting the
+# participant with a discovery callback in flight, until run() held it (dds_teardown.py).
 CLEANUP_TIMEOUT_S = 30.0
 
 
@@ -124,8 +125,12 @@ def run(make_node, args=None):
     faulthandler.register(signal.SIGUSR1)
     nodes = []
     executor = None
+    hold = None
     exit_code = EXIT_FAILED
     try:
+        # The DDS participant outlives every node, even one refused while it is built, and goes
+        # last, the safe way (sim_diffdrive/dds_teardown.py).
+        hold = ParticipantHold(rclpy.get_default_context())
         nodes = _as_list(make_node())
         if len(nodes) == 1:
             logger = nodes[0].get_logger()
@@ -166,6 +171,8 @@ def run(make_node, args=None):
             for node in nodes:
                 if not _destroy(node):
                     exit_code = EXIT_FAILED
+            if hold is not None and not _release(hold, logger):
+                exit_code = EXIT_FAILED
         finally:
             rclpy.try_shutdown()
             faulthandler.cancel_dump_traceback_later()
@@ -182,6 +189,16 @@ def _destroy(node):
         node.destroy_node()
     except Exception as error:
         node.get_logger().error(f'destroy_node failed ({type(error).__name__}: {error})')
+        return False
+    return True
+
+
+def _release(hold, logger):
+    """Let the held DDS participant go; return False when that failed (it is logged)."""
+    try:
+        hold.release()
+    except Exception as error:
+        logger.error(f'Releasing the DDS participant failed ({type(error).__name__}: {error})')
         return False
     return True
 

@@ -32,6 +32,7 @@ import rclpy
 from rclpy.context import Context
 from sim_diffdrive import harness
 from sim_diffdrive.dds_profile import use_package_profile
+from sim_diffdrive.dds_teardown import ParticipantHold
 from sim_diffdrive.harness import DOMAIN_VARIABLE
 from sim_diffdrive.harness import isolated_domain_id
 from sim_diffdrive.harness import SimGraph
@@ -75,11 +76,18 @@ def pytest_configure(config):
 
 @pytest.fixture
 def ros_context():
-    """Yield a fresh rclpy Context (no signal handlers) on this run's domain."""
+    """
+    Yield a fresh rclpy Context (no signal handlers) on this run's domain.
+
+    Its DDS participant is held until the test is over, then let go the safe way: a test's
+    last destroy_node() would otherwise delete it, and hang for good if a discovery callback
+    was running then (sim_diffdrive/dds_teardown.py).
+    """
     context = Context()
     rclpy.init(context=context, domain_id=DOMAIN_ID)
     try:
-        yield context
+        with ParticipantHold(context):
+            yield context
     finally:
         rclpy.try_shutdown(context=context)
 

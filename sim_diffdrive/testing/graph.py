@@ -35,6 +35,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import LaserScan
 from sim_diffdrive.dds_profile import use_package_profile
+from sim_diffdrive.dds_teardown import ParticipantHold
 from sim_diffdrive.lockstep.counter import clock_topic
 from sim_diffdrive.lockstep.counter import MessageCounter
 from sim_diffdrive.lockstep.handshake import Answer
@@ -295,10 +296,13 @@ class SimGraph(Lockstep):
 
     def __init__(self, context=None, executor_class=EventsExecutor):
         self._own_context = context is None
+        self._hold = None
         use_package_profile()  # takes effect if no node of this process was made before
         if context is None:
             context = Context()
             rclpy.init(context=context, domain_id=isolated_domain_id())
+            # Its participant goes on close(), the safe way (sim_diffdrive/dds_teardown.py).
+            self._hold = ParticipantHold(context)
         super().__init__(executor_class(context=context))
         self.context = context
         self._probes = {}  # robot name (None: the one on odom) -> listening Probe
@@ -402,7 +406,10 @@ class SimGraph(Lockstep):
         super().close()
         self._probes, self._scans = {}, {}
         if self._own_context:
-            rclpy.try_shutdown(context=self.context)
+            try:
+                self._hold.release()
+            finally:
+                rclpy.try_shutdown(context=self.context)
 
 
 def _overrides(params):

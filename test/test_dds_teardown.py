@@ -1,0 +1,69 @@
+# Copyright 2026 motion_challenges contributors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The DDS participant let go the safe way (sim_diffdrive/dds_teardown.py).
+
+The hang itself needs a discovery callback in flight at the instant the participant goes, a
+race these tests do not stage; they show the pieces: the participant outlives the last node
+while held, its listener is detached before it goes, and the holder stays out of the way.
+"""
+
+import ctypes
+
+from rclpy.node import Node
+from rclpy.utilities import get_rmw_implementation_identifier
+from sim_diffdrive import dds_teardown
+from sim_diffdrive.dds_teardown import HOLDER_NAME
+from sim_diffdrive.dds_teardown import ParticipantHold
+from sim_diffdrive.dds_teardown import release_participant
+
+# DomainParticipant::get_listener() const
+_GET_LISTENER = '_ZNK8eprosima7fastdds3dds17DomainParticipant12get_listenerEv'
+
+
+def participant_listener(handle):
+    """Return the address of the DDS listener of the participant of an rcl node handle."""
+    rmw_handle, participant, _ = dds_teardown._functions()
+    get_listener = getattr(dds_teardown._loaded('libfastrtps.so.2.14'), _GET_LISTENER)
+    get_listener.restype, get_listener.argtypes = ctypes.c_void_p, [ctypes.c_void_p]
+    with handle:
+        return get_listener(participant(rmw_handle(handle.pointer)))
+
+
+def test_a_held_participant_outlives_the_last_node_and_is_let_go(ros_context):
+    # ros_context holds its participant already; a hold of one's own works the same way.
+    assert get_rmw_implementation_identifier() == 'rmw_fastrtps_cpp'
+    hold = ParticipantHold(ros_context)
+    holder = hold._holder
+    node = Node('last_of_its_context', context=ros_context)
+    node.destroy_node()
+    # The participant is still there, rmw's listener on it: the holder reaches it.
+    assert participant_listener(holder)
+    assert release_participant(holder)
+    assert not participant_listener(holder), 'the listener is still attached'
+    hold.release()
+    assert hold._holder is None
+    hold.release()  # once is enough; again is a no-op
+
+
+def test_the_holder_is_a_node_of_no_entities(ros_context):
+    node = Node('lister', context=ros_context)
+    try:
+        assert (HOLDER_NAME, '/') in node.get_node_names_and_namespaces()
+        publishers = node.get_publisher_names_and_types_by_node(HOLDER_NAME, '/')
+        subscriptions = node.get_subscriber_names_and_types_by_node(HOLDER_NAME, '/')
+        assert publishers == [] and subscriptions == []
+    finally:
+        node.destroy_node()
