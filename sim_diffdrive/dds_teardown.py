@@ -66,18 +66,26 @@ def _loaded(soname):
 
 
 def _functions():
+    """Return the three functions, or () where a library or symbol is not what it expects."""
     if not _calls:
-        rmw_handle = _loaded('librcl.so').rcl_node_get_rmw_handle
-        rmw_handle.restype, rmw_handle.argtypes = ctypes.c_void_p, [ctypes.c_void_p]
-        participant = getattr(_loaded('librmw_fastrtps_cpp.so'), _GET_PARTICIPANT)
-        participant.restype, participant.argtypes = ctypes.c_void_p, [ctypes.c_void_p]
-        # The seconds, a one-integer class, travel by value in a register (Itanium C++ ABI);
-        # the ReturnCode_t, one 32-bit integer, comes back the same way.
-        set_listener = getattr(_loaded('libfastrtps.so.2.14'), _SET_LISTENER)
-        set_listener.restype = ctypes.c_uint32
-        set_listener.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int64]
-        _calls[:] = rmw_handle, participant, set_listener
-    return _calls
+        try:
+            _calls[:] = _find()
+        except (OSError, AttributeError):  # another Fast DDS build: rmw's own wait it is
+            _calls.append(None)
+    return () if _calls[0] is None else _calls
+
+
+def _find():
+    rmw_handle = _loaded('librcl.so').rcl_node_get_rmw_handle
+    rmw_handle.restype, rmw_handle.argtypes = ctypes.c_void_p, [ctypes.c_void_p]
+    participant = getattr(_loaded('librmw_fastrtps_cpp.so'), _GET_PARTICIPANT)
+    participant.restype, participant.argtypes = ctypes.c_void_p, [ctypes.c_void_p]
+    # The seconds, a one-integer class, travel by value in a register (Itanium C++ ABI);
+    # the ReturnCode_t, one 32-bit integer, comes back the same way.
+    set_listener = getattr(_loaded('libfastrtps.so.2.14'), _SET_LISTENER)
+    set_listener.restype = ctypes.c_uint32
+    set_listener.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int64]
+    return rmw_handle, participant, set_listener
 
 
 def release_participant(node):
@@ -86,9 +94,10 @@ def release_participant(node):
 
     node is an rclpy Node, or the rclpy implementation's node handle; its context's nodes are
     about to be destroyed.  Return whether there was a listener to detach: False under another
-    RMW than rmw_fastrtps_cpp.  ctypes lets the GIL go while it waits.
+    RMW than rmw_fastrtps_cpp, or with a Fast DDS whose library does not have the call (rmw
+    then detaches it as it always does).  ctypes lets the GIL go while it waits.
     """
-    if get_rmw_implementation_identifier() != 'rmw_fastrtps_cpp':
+    if get_rmw_implementation_identifier() != 'rmw_fastrtps_cpp' or not _functions():
         return False
     rmw_handle, participant, set_listener = _functions()
     handle = getattr(node, 'handle', node)
