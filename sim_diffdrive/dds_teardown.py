@@ -38,13 +38,16 @@ participant and destroys that node last.
 """
 
 import ctypes
+import itertools
 import os
 
 from rclpy.impl.implementation_singleton import rclpy_implementation
 from rclpy.utilities import get_rmw_implementation_identifier
 
-# The holding node's name: hidden (a leading underscore) from `ros2 node list`.
-HOLDER_NAME = '_participant_holder'
+# The holding nodes' names: hidden (a leading underscore) from `ros2 node list`, and numbered
+# in the process after its id, so that `ros2 node list -a` finds no two nodes of one name.
+HOLDER_NAME = '_participant_holder_{pid}_{number}'
+_holders = itertools.count()
 
 # Fast DDS's ReturnCode_t::RETCODE_OK.
 _RETCODE_OK = 0
@@ -123,7 +126,8 @@ class ParticipantHold:
     """
 
     def __init__(self, context):
-        self._holder = rclpy_implementation.Node(HOLDER_NAME, '', context.handle, None, False,
+        self.name = HOLDER_NAME.format(pid=os.getpid(), number=next(_holders))
+        self._holder = rclpy_implementation.Node(self.name, '', context.handle, None, False,
                                                  False)
 
     def release(self):

@@ -25,7 +25,6 @@ import ctypes
 from rclpy.node import Node
 from rclpy.utilities import get_rmw_implementation_identifier
 from sim_diffdrive import dds_teardown
-from sim_diffdrive.dds_teardown import HOLDER_NAME
 from sim_diffdrive.dds_teardown import ParticipantHold
 from sim_diffdrive.dds_teardown import release_participant
 
@@ -58,12 +57,15 @@ def test_a_held_participant_outlives_the_last_node_and_is_let_go(ros_context):
     hold.release()  # once is enough; again is a no-op
 
 
-def test_the_holder_is_a_node_of_no_entities(ros_context):
+def test_the_holder_is_a_node_of_no_entities_and_a_name_of_its_own(ros_context):
     node = Node('lister', context=ros_context)
     try:
-        assert (HOLDER_NAME, '/') in node.get_node_names_and_namespaces()
-        publishers = node.get_publisher_names_and_types_by_node(HOLDER_NAME, '/')
-        subscriptions = node.get_subscriber_names_and_types_by_node(HOLDER_NAME, '/')
-        assert publishers == [] and subscriptions == []
+        with ParticipantHold(ros_context) as hold, ParticipantHold(ros_context) as other:
+            assert hold.name != other.name and hold.name.startswith('_participant_holder_')
+            names = node.get_node_names_and_namespaces()
+            assert (hold.name, '/') in names and (other.name, '/') in names
+            publishers = node.get_publisher_names_and_types_by_node(hold.name, '/')
+            subscriptions = node.get_subscriber_names_and_types_by_node(hold.name, '/')
+            assert publishers == [] and subscriptions == []
     finally:
         node.destroy_node()
