@@ -36,6 +36,7 @@ from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.experimental import EventsExecutor
 from rclpy.parameter import Parameter
+from sim_diffdrive.dds_teardown import ParticipantHold
 from sim_diffdrive.harness import SimGraph
 from sim_diffdrive.sim.node import UnicycleSim
 
@@ -51,6 +52,7 @@ def lockstep_graph(executor_class=EventsExecutor, namespace=None, **sim_params):
     context = Context()
     with mock.patch.dict(os.environ, {'ROS_AUTOMATIC_DISCOVERY_RANGE': 'OFF'}):
         rclpy.init(context=context)
+    hold = ParticipantHold(context)  # its participant goes last, the safe way
     graph = SimGraph(context, executor_class)
     try:
         params = {'publish_clock': True, 'lockstep': False, **sim_params}
@@ -60,6 +62,7 @@ def lockstep_graph(executor_class=EventsExecutor, namespace=None, **sim_params):
         yield graph
     finally:
         graph.close()
+        hold.release()
         rclpy.try_shutdown(context=context)
 
 
