@@ -257,9 +257,14 @@ def wait_for_exit(graph, process, timeout=60.0):
     return process.returncode, process.output()
 
 
-def later_odometry(graph, watchers, seconds=0.2):
-    """Let every robot's odometry run on by seconds of simulated time; return the latest."""
-    stamps = [stamp_s(w.odom) for w in watchers]
+def later_odometry(graph, watchers, seconds=0.2, since_s=None):
+    """
+    Let every robot's odometry run on by seconds of simulated time; return the latest.
+
+    From since_s [s, simulated], or else from the latest each watcher has heard: a watcher on
+    wall time can be behind by more than seconds (a fraction of them in wall time).
+    """
+    stamps = [stamp_s(w.odom) if since_s is None else since_s for w in watchers]
     assert graph.spin_until(lambda: all(w.stamp_s > s + seconds
                                         for w, s in zip(watchers, stamps)), 10.0)
     return [w.odom for w in watchers]
@@ -308,7 +313,10 @@ def params_file_fleet_ends_exact(graph, procs, sim, watchers):
     motions = ['odom_out_and_back', 'timed_out_and_back', 'rotate_robot']
     assert ('Motions: robot1 odom_out_and_back: exit code 0; robot2 timed_out_and_back: '
             'exit code 0; robot3 rotate_robot: exit code 0') in output
-    ends = later_odometry(graph, watchers)
+    # At rest from the fleet's goodbye on, the final stops heard before it (in lockstep).
+    assert graph.spin_until(lambda: 'left at' in sim.output(), 10.0), sim.describe()
+    left_s = float(re.search(r'left at ([0-9.]+) s', sim.output()).group(1))
+    ends = later_odometry(graph, watchers, since_s=left_s)
     for i, (robot, motion, odom) in enumerate(zip(ROBOTS, motions, ends)):
         lines = [line for line in output.splitlines() if f'[{robot}.{motion}]' in line]
         closing = closing_line('\n'.join(lines))
@@ -317,7 +325,6 @@ def params_file_fleet_ends_exact(graph, procs, sim, watchers):
         assert not is_moving(odom), closing
         assert_at(odom, end_of(motion, start_of(i)), closing)
     # The fleet took part as one: one answer a step for its three motions, and one goodbye.
-    assert graph.spin_until(lambda: 'left at' in sim.output(), 10.0), sim.describe()
     sim_output = sim.output()
     assert re.findall(r'Lockstep: (\S+) takes part from .*; (\d+) participant', sim_output) \
         == [('/motion_fleet', '1')], sim_output
