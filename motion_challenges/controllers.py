@@ -120,8 +120,8 @@ def odometry_fault(last, pose, commands, tolerance=JUMP_TOLERANCE, velocity=(0.0
     # other way.
     if (moved > 1.5 * abs(metres) + tolerance
             or not _within(ahead, metres, tolerance) or not _within(turned, radians, tolerance)):
-        return (f'Odometry jumped {moved:.3f} m and {math.degrees(abs(turned)):.1f} deg '
-                'between two messages')
+        return (f'Odometry jumped {moved:.3f} m ({ahead:+.3f} m along the heading) and '
+                f'{math.degrees(abs(turned)):.1f} deg between two messages')
     return ''
 
 

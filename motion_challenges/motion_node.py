@@ -204,6 +204,7 @@ class MotionNode(Node):
             # Fast DDS sends within publish(); its acknowledgement waits for a heartbeat that
             # can be seconds away, so only a short wait covers a resend on a lossy link.
             if self.stop_ack_timeout > 0.0:
+                readers = self.cmd_pub.get_subscription_count()  # with none, all is acknowledged
                 stopped = self.cmd_pub.wait_for_all_acked(Duration(seconds=self.stop_ack_timeout))
                 unheard = ' and '.join(what for what, heard in (
                     ('the final stop', stopped), ('the lockstep goodbye', said_goodbye))
@@ -214,11 +215,10 @@ class MotionNode(Node):
                         'subscriber is gone or stalled, or the link is lossy)')
                 else:
                     self.get_logger().debug(
-                        'Final stop acknowledged by the '
-                        f'{self.cmd_pub.get_subscription_count()} subscriber(s) of cmd_vel')
+                        f'Final stop acknowledged by the {readers} subscriber(s) of cmd_vel')
         else:
-            self.get_logger().warning('ROS was shut down before the final stop: the robot was '
-                                      'not told to stop')
+            self.get_logger().warning('ROS was shut down before the final stop could be sent '
+                                      '(a stop sent before stands)')
 
     def now_ns(self):
         return self.get_clock().now().nanoseconds

@@ -37,17 +37,20 @@ participant from the start with a node of no entities and, on release(), release
 participant and destroys that node last.
 """
 
+from contextlib import contextmanager
 import ctypes
-import itertools
 import os
+import secrets
 
+import rclpy
+from rclpy.context import Context
 from rclpy.impl.implementation_singleton import rclpy_implementation
 from rclpy.utilities import get_rmw_implementation_identifier
 
-# The holding nodes' names: hidden (a leading underscore) from `ros2 node list`, and numbered
-# in the process after its id, so that `ros2 node list -a` finds no two nodes of one name.
-HOLDER_NAME = '_participant_holder_{pid}_{number}'
-_holders = itertools.count()
+# The holding nodes' names: hidden (a leading underscore) from `ros2 node list`; the process
+# id, then random hex, so that `ros2 node list -a` finds no two nodes of one name (containers
+# on one network can all be process 1).
+HOLDER_NAME = '_participant_holder_{pid}_{suffix}'
 
 # Fast DDS's ReturnCode_t::RETCODE_OK.
 _RETCODE_OK = 0
@@ -83,8 +86,8 @@ def _find():
     rmw_handle.restype, rmw_handle.argtypes = ctypes.c_void_p, [ctypes.c_void_p]
     participant = getattr(_loaded('librmw_fastrtps_cpp.so'), _GET_PARTICIPANT)
     participant.restype, participant.argtypes = ctypes.c_void_p, [ctypes.c_void_p]
-    # The seconds, a one-integer class, travel by value in a register (Itanium C++ ABI);
-    # the ReturnCode_t, one 32-bit integer, comes back the same way.
+    # The seconds, a trivially copyable one-integer class, travel by value in a register, and
+    # the ReturnCode_t, one 32-bit integer, comes back in one (x86-64 System V and AAPCS64).
     set_listener = getattr(_loaded('libfastrtps.so.2.14'), _SET_LISTENER)
     set_listener.restype = ctypes.c_uint32
     set_listener.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int64]
@@ -104,12 +107,12 @@ def release_participant(node):
         return False
     rmw_handle, participant, set_listener = _functions()
     handle = getattr(node, 'handle', node)
-    with handle:
+    with handle:  # the node, and so its participant, cannot go meanwhile
         rmw_node = rmw_handle(handle.pointer)
-    dds_participant = participant(rmw_node) if rmw_node else None
-    if not dds_participant:
-        return False
-    code = set_listener(dds_participant, None, _WAIT_S)
+        dds_participant = participant(rmw_node) if rmw_node else None
+        if not dds_participant:
+            return False
+        code = set_listener(dds_participant, None, _WAIT_S)
     if code != _RETCODE_OK:
         raise RuntimeError(f'DomainParticipant::set_listener(nullptr) returned {code}')
     return True
@@ -126,7 +129,7 @@ class ParticipantHold:
     """
 
     def __init__(self, context):
-        self.name = HOLDER_NAME.format(pid=os.getpid(), number=next(_holders))
+        self.name = HOLDER_NAME.format(pid=os.getpid(), suffix=secrets.token_hex(4))
         self._holder = rclpy_implementation.Node(self.name, '', context.handle, None, False,
                                                  False)
 
@@ -144,3 +147,15 @@ class ParticipantHold:
 
     def __exit__(self, *exc):
         self.release()
+
+
+@contextmanager
+def held_context(args=None, domain_id=None):
+    """Yield a new rclpy Context, its participant held and let go the safe way, then shut down."""
+    context = Context()
+    rclpy.init(args=args, context=context, domain_id=domain_id)
+    try:
+        with ParticipantHold(context):
+            yield context
+    finally:
+        rclpy.try_shutdown(context=context)

@@ -29,10 +29,9 @@ import time
 
 import pytest
 import rclpy
-from rclpy.context import Context
 from sim_diffdrive import harness
 from sim_diffdrive.dds_profile import use_package_profile
-from sim_diffdrive.dds_teardown import ParticipantHold
+from sim_diffdrive.dds_teardown import held_context
 from sim_diffdrive.harness import DOMAIN_VARIABLE
 from sim_diffdrive.harness import isolated_domain_id
 from sim_diffdrive.harness import SimGraph
@@ -83,13 +82,8 @@ def ros_context():
     last destroy_node() would otherwise delete it, and hang for good if a discovery callback
     was running then (sim_diffdrive/dds_teardown.py).
     """
-    context = Context()
-    rclpy.init(context=context, domain_id=DOMAIN_ID)
-    try:
-        with ParticipantHold(context):
-            yield context
-    finally:
-        rclpy.try_shutdown(context=context)
+    with held_context(domain_id=DOMAIN_ID) as context:
+        yield context
 
 
 @pytest.fixture

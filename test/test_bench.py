@@ -181,9 +181,9 @@ def test_quick_run_writes_every_row(tmp_path):
     assert rows['cpu_idle']['rclpy_floor_percent'] > 0.0
     assert rows['cpu_idle']['publish_floor_percent'] > 0.0
     assert rows['cpu_idle']['sleep_floor_percent'] > 0.0
-    # Wakes per step by thread (voluntary, counted only when some happened): how many depends
-    # on the load; a busy machine's behind simulator runs several steps a wake, or none.
-    assert all(count > 0.0 for count in rows['cpu_idle']['wakes_per_step'].values())
+    # Wakes per step by thread: how many is the load's (a simulator behind on a busy machine
+    # runs several steps a wake), but some thread of it was seen to wake.
+    assert rows['cpu_idle']['wakes_per_step'], 'no wake of the simulator was counted'
     assert tuple(rows['scaling_one_process']['rtf']) == tuple(map(str, sizes.robots))
     assert tuple(rows['scaling_processes']['rtf']) == tuple(map(str, sizes.robots_processes))
     # Many robots in one simulator (rows 13-18): every count measured, sane, motions exact.

@@ -294,7 +294,8 @@ def test_a_restarted_simulator_whose_clock_ran_ahead_is_a_fault():
     # 0.2 m into a drive at 0.2 m/s, the next odometry is 3 s later and back at the start:
     # closer than the 0.6 m commanded meanwhile, but behind the robot.
     last, pose = Pose(0.2, 0.0, 0.0, 1 * NS), Pose(0.0, 0.0, 0.0, 4 * NS)
-    assert odometry_fault(last, pose, driving_log(0.2, 0.0)).startswith('Odometry jumped 0.200')
+    assert odometry_fault(last, pose, driving_log(0.2, 0.0)) == (
+        'Odometry jumped 0.200 m (-0.200 m along the heading) and 0.0 deg between two messages')
     # The same step forward, and along an arc (the chord half the turn ahead), is no fault.
     assert odometry_fault(last, Pose(0.4, 0.0, 0.0, 4 * NS), driving_log(0.2, 0.0)) == ''
     x, y, yaw = integrate(0.2, 0.0, 0.0, 0.2, 0.5, 3.0)

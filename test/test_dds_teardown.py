@@ -22,11 +22,16 @@ while held, its listener is detached before it goes, and the holder stays out of
 
 import ctypes
 
+import rclpy
+from rclpy.context import Context
 from rclpy.node import Node
 from rclpy.utilities import get_rmw_implementation_identifier
 from sim_diffdrive import dds_teardown
+from sim_diffdrive.dds_teardown import held_context
 from sim_diffdrive.dds_teardown import ParticipantHold
 from sim_diffdrive.dds_teardown import release_participant
+from sim_diffdrive.harness import isolated_domain_id
+from sim_diffdrive.harness import SimGraph
 
 # DomainParticipant::get_listener() const
 _GET_LISTENER = '_ZNK8eprosima7fastdds3dds17DomainParticipant12get_listenerEv'
@@ -41,20 +46,30 @@ def participant_listener(handle):
         return get_listener(participant(rmw_handle(handle.pointer)))
 
 
-def test_a_held_participant_outlives_the_last_node_and_is_let_go(ros_context):
-    # ros_context holds its participant already; a hold of one's own works the same way.
+def test_a_held_participant_outlives_the_last_node_and_is_let_go():
+    # A context of its own, held by nothing else: the user's node is its only other node.
     assert get_rmw_implementation_identifier() == 'rmw_fastrtps_cpp'
-    hold = ParticipantHold(ros_context)
-    holder = hold._holder
-    node = Node('last_of_its_context', context=ros_context)
-    node.destroy_node()
-    # The participant is still there, rmw's listener on it: the holder reaches it.
-    assert participant_listener(holder)
-    assert release_participant(holder)
-    assert not participant_listener(holder), 'the listener is still attached'
-    hold.release()
-    assert hold._holder is None
-    hold.release()  # once is enough; again is a no-op
+    context = Context()
+    rclpy.init(context=context, domain_id=isolated_domain_id())
+    try:
+        with ParticipantHold(context) as hold:
+            node = Node('last_of_its_context', context=context)
+            node.destroy_node()
+            # The participant is still there, rmw's listener on it: the holder reaches it.
+            assert participant_listener(hold._holder)
+            assert release_participant(hold._holder)
+            assert not participant_listener(hold._holder), 'the listener is still attached'
+        assert hold._holder is None
+        hold.release()  # once is enough; again is a no-op
+    finally:
+        rclpy.try_shutdown(context=context)
+
+
+def test_a_held_context_is_shut_down_after_its_participant_went():
+    with held_context(domain_id=isolated_domain_id()) as context:
+        Node('left_to_the_context', context=context)
+        assert context.ok()
+    assert not context.ok()
 
 
 def test_the_holder_is_a_node_of_no_entities_and_a_name_of_its_own(ros_context):
@@ -69,3 +84,10 @@ def test_the_holder_is_a_node_of_no_entities_and_a_name_of_its_own(ros_context):
             assert publishers == [] and subscriptions == []
     finally:
         node.destroy_node()
+
+
+def test_a_graph_of_its_own_holds_its_participant():
+    with SimGraph() as graph:
+        lister = graph.add(Node('lister', context=graph.context))
+        assert any(name.startswith('_participant_holder_')
+                   for name, _ in lister.get_node_names_and_namespaces())

@@ -46,9 +46,8 @@ import sys
 from motion_challenges.motion_fleet import motion_classes
 from motion_challenges.motion_fleet import MotionFleet
 import pytest
-import rclpy
-from rclpy.context import Context
 from rclpy.parameter import Parameter
+from sim_diffdrive.dds_teardown import held_context
 from sim_diffdrive.harness import SimGraph
 from sim_diffdrive.parameters import live_parameters
 from sim_diffdrive.parameters import ParameterError
@@ -136,22 +135,20 @@ def build(executable, context):
 
 def started(executable, ros_args=()):
     """Build executable from ros_args; return {parameter: value} and the live ones."""
-    context = Context()
-    rclpy.init(args=['example', '--ros-args', *ros_args], context=context,
-               domain_id=int(os.environ['ROS_DOMAIN_ID']))
-    nodes = []
-    try:
-        nodes = build(executable, context)
-        values, live = {}, set()
-        for node in nodes:
-            for name in node.list_parameters([], 0).names:
-                values.setdefault(name, node.get_parameter(name).value)
-            live |= live_parameters(node)
-        return values, live
-    finally:
-        for node in nodes:
-            node.destroy_node()
-        rclpy.try_shutdown(context=context)
+    with held_context(['example', '--ros-args', *ros_args],
+                      int(os.environ['ROS_DOMAIN_ID'])) as context:
+        nodes = []
+        try:
+            nodes = build(executable, context)
+            values, live = {}, set()
+            for node in nodes:
+                for name in node.list_parameters([], 0).names:
+                    values.setdefault(name, node.get_parameter(name).value)
+                live |= live_parameters(node)
+            return values, live
+        finally:
+            for node in nodes:
+                node.destroy_node()
 
 
 def check_ros_args(executable, args):

@@ -24,7 +24,7 @@ import time
 from geometry_msgs.msg import Twist
 import pytest
 import rclpy
-from rclpy.context import Context
+from sim_diffdrive.dds_teardown import held_context
 from sim_diffdrive.harness import kill_all
 from sim_diffdrive.harness import Process
 from sim_diffdrive.harness import SimGraph
@@ -179,9 +179,7 @@ def test_a_graph_without_a_stepped_simulator_removes_nodes(ros_context):
 
 def test_removing_a_node_waits_for_its_own_publishers_only(ros_context, graph):
     # Another participant (as another process is) publishes on the topics every node has.
-    other = Context()
-    rclpy.init(context=other, domain_id=ros_context.get_domain_id())
-    try:
+    with held_context(domain_id=ros_context.get_domain_id()) as other:
         elsewhere = rclpy.create_node('elsewhere', context=other)
         probe = graph.probe(listen_only=True)
         graph.probe('other', listen_only=True)
@@ -189,8 +187,6 @@ def test_removing_a_node_waits_for_its_own_publishers_only(ros_context, graph):
         assert graph.remove(probe)  # not held until the other participant leaves
         assert graph.nodes[0].count_publishers('/parameter_events') == 2
         elsewhere.destroy_node()
-    finally:
-        rclpy.try_shutdown(context=other)
 
 
 def test_a_removed_node_never_runs_a_callback_once_destroyed(graph):

@@ -22,6 +22,7 @@ simulator killed mid-motion stops every motion, and the fleet names each robot l
 Parameter mistakes are refused with exit code 2 and the parameter named.
 """
 
+from contextlib import contextmanager
 import math
 from pathlib import Path
 import re
@@ -40,8 +41,7 @@ from motion_challenges.prompts import RotationRequest
 from motion_challenges.rotate_robot import RotateRobot
 from motion_challenges.timed_out_and_back import TimedOutAndBack
 import pytest
-import rclpy
-from rclpy.context import Context
+from sim_diffdrive.dds_teardown import held_context
 from sim_diffdrive.harness import angle_error
 from sim_diffdrive.harness import is_moving
 from sim_diffdrive.harness import isolated_domain_id
@@ -156,18 +156,22 @@ def test_a_motions_own_bad_parameter_names_the_robot_and_the_parameter(ros_conte
     assert "robot 'robot1' (timed_out_and_back): parameter 'goal_distance'" in str(error.value)
 
 
+@contextmanager
 def fleet_in(args):
     """Build MotionFleet and its motions in a context with args as the process's arguments."""
-    context = Context()
-    rclpy.init(args=args, context=context, domain_id=isolated_domain_id())
-    fleet = MotionFleet(context=context)
-    return context, fleet, fleet.build()
+    with held_context(args, isolated_domain_id()) as context:
+        fleet = MotionFleet(context=context)
+        nodes = fleet.build()
+        try:
+            yield fleet, nodes
+        finally:
+            for node in (*nodes, fleet):
+                node.destroy_node()
 
 
 def test_the_shipped_params_file_reaches_every_node_and_one_robots_section_only_it():
-    context, fleet, nodes = fleet_in(['--ros-args', '--params-file', str(CONFIG),
-                                      '-p', 'pause:=0.25'])
-    try:
+    with fleet_in(['--ros-args', '--params-file', str(CONFIG), '-p', 'pause:=0.25']) as (
+            fleet, nodes):
         odom, timed, rotate = nodes
         # Each section names only parameters that the nodes it speaks to declare.
         sections = {'/motion_fleet': [fleet], '/**': [fleet, *nodes],
@@ -185,8 +189,6 @@ def test_the_shipped_params_file_reaches_every_node_and_one_robots_section_only_
         assert (odom.params.legs, timed.params.legs) == (1, 2)  # /**/odom_out_and_back
         assert (odom.params.pause, timed.params.pause) == (0.25, 0.25)  # -p: every node
         assert rotate.request == RotationRequest(90.0, 180.0, True)  # /robot3/rotate_robot
-    finally:
-        rclpy.try_shutdown(context=context)
 
 
 @pytest.mark.parametrize('sim_time,fleet_takes_part,own', [
@@ -199,10 +201,10 @@ def test_motions_on_the_fleets_clock_answer_through_it_and_others_on_their_own(
     params = tmp_path / 'params.yaml'
     params.write_text(yaml.safe_dump({section: {'ros__parameters': {'use_sim_time': value}}
                                       for section, value in sim_time.items()}))
-    context, fleet, nodes = fleet_in([
-        '--ros-args', '-p', 'robots:=[robot1,robot2]',
-        '-p', 'motions:=[odom_out_and_back,timed_out_and_back]', '--params-file', str(params)])
-    try:
+    with fleet_in([
+            '--ros-args', '-p', 'robots:=[robot1,robot2]',
+            '-p', 'motions:=[odom_out_and_back,timed_out_and_back]', '--params-file',
+            str(params)]) as (fleet, nodes):
         assert (fleet.lockstep is not None) == fleet_takes_part
         robots = dict(zip(['robot1', 'robot2'], nodes))
         assert [robot for robot, node in robots.items()
@@ -212,23 +214,19 @@ def test_motions_on_the_fleets_clock_answer_through_it_and_others_on_their_own(
             assert (node.lockstep is not None) == node.get_parameter('use_sim_time').value
             if fleet_takes_part and node.lockstep is not None:
                 assert node.lockstep.participant is fleet.lockstep
-    finally:
-        rclpy.try_shutdown(context=context)
 
 
 def test_a_namespace_given_to_the_process_comes_before_every_robots():
     # A global -r __ns:= would put every node of the process in one namespace under one name.
-    context, fleet, nodes = fleet_in([
-        '--ros-args', '-r', '__ns:=/site', '-r', '__node:=renamed',
-        '-p', 'robots:=[robot1,robot2]', '-p', 'motions:=[timed_out_and_back]'])
-    try:
+    with fleet_in([
+            '--ros-args', '-r', '__ns:=/site', '-r', '__node:=renamed',
+            '-p', 'robots:=[robot1,robot2]', '-p', 'motions:=[timed_out_and_back]']) as (
+            fleet, nodes):
         assert fleet.get_fully_qualified_name() == '/site/renamed'
         assert [n.get_fully_qualified_name() for n in nodes] == [
             '/site/robot1/timed_out_and_back', '/site/robot2/timed_out_and_back']
         assert [n.cmd_pub.topic_name for n in nodes] == [
             '/site/robot1/cmd_vel', '/site/robot2/cmd_vel']
-    finally:
-        rclpy.try_shutdown(context=context)
 
 
 # -- as processes: motion_fleet against one unicycle_sim for all robots ----------------------

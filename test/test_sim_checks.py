@@ -26,6 +26,7 @@ arrives).  A tap whose Python package is missing (MCAP, Foxglove, the browser vi
 with the package to install, and the simulator runs without it.
 """
 
+from contextlib import contextmanager
 import os
 import re
 import sys
@@ -36,12 +37,11 @@ from geometry_msgs.msg import TwistStamped
 import pytest
 from rcl_interfaces.msg import Parameter as ParameterMsg
 from rcl_interfaces.srv import SetParameters
-import rclpy
-from rclpy.context import Context
 from rclpy.node import Node
 from rclpy.parameter import get_parameter_value
 from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock as ClockMsg
+from sim_diffdrive.dds_teardown import held_context
 from sim_diffdrive.lockstep.owner import UNDISCOVERED_TIMEOUTS
 from sim_diffdrive.lockstep.participant import take_part
 from sim_diffdrive.parameters import ParameterError
@@ -389,6 +389,7 @@ def test_a_message_from_a_sender_that_left_and_is_gone_is_not_waited_for_long(gr
     assert 1.0 <= float(held.group(1)) < UNDISCOVERED_TIMEOUTS * 1.0
 
 
+@contextmanager
 def other_type_teleop(domain_id):
     """
     Return a node of a context (a DDS participant) of its own, as another process would be.
@@ -397,12 +398,14 @@ def other_type_teleop(domain_id):
     to it on robot a's.  One participant cannot hold two types on one topic; another can, in
     this process or in another: the simulator sees only what discovery tells it.
     """
-    context = Context()
-    rclpy.init(context=context, domain_id=domain_id)
-    node = Node('stamped_teleop', context=context, enable_rosout=False)
-    node.create_subscription(TwistStamped, '/a/cmd_vel', lambda msg: None, 10)
-    node.create_publisher(TwistStamped, '/b/cmd_vel', 10)
-    return node
+    with held_context(domain_id=domain_id) as context:
+        node = Node('stamped_teleop', context=context, enable_rosout=False)
+        try:
+            node.create_subscription(TwistStamped, '/a/cmd_vel', lambda msg: None, 10)
+            node.create_publisher(TwistStamped, '/b/cmd_vel', 10)
+            yield node
+        finally:
+            node.destroy_node()
 
 
 def test_a_publisher_of_another_type_on_a_robots_cmd_vel_is_named_once(
@@ -414,8 +417,7 @@ def test_a_publisher_of_another_type_on_a_robots_cmd_vel_is_named_once(
     def warnings():
         log.append(capfd.readouterr().err)
         return [line for line in ''.join(log).splitlines() if 'never arrive' in line]
-    other = other_type_teleop(graph.context.get_domain_id())
-    try:
+    with other_type_teleop(graph.context.get_domain_id()):
         deadline = time.monotonic() + 15.0
         while not warnings() and time.monotonic() < deadline:
             graph.step()
@@ -423,10 +425,6 @@ def test_a_publisher_of_another_type_on_a_robots_cmd_vel_is_named_once(
         for _ in range(10):  # 0.5 s more, the graph looked at again: no second warning
             graph.step()
             graph.spin_for(0.05)
-    finally:
-        context = other.context
-        other.destroy_node()
-        rclpy.try_shutdown(context=context)
     assert len(warnings()) == 1, log
     assert ('b: A publisher on /b/cmd_vel sends geometry_msgs/msg/TwistStamped, but this '
             'simulator takes geometry_msgs/msg/Twist (stamped:=true takes it)') in warnings()[0]

@@ -403,13 +403,15 @@ class SimGraph(Lockstep):
         self.spin_until(lambda: time.monotonic() >= end, seconds)
 
     def close(self):
-        super().close()
-        self._probes, self._scans = {}, {}
-        if self._own_context:
-            try:
-                self._hold.release()
-            finally:
-                rclpy.try_shutdown(context=self.context)
+        try:
+            super().close()
+        finally:
+            self._probes, self._scans = {}, {}
+            if self._own_context:
+                try:
+                    self._hold.release()
+                finally:
+                    rclpy.try_shutdown(context=self.context)
 
 
 def _overrides(params):

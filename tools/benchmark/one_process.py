@@ -36,6 +36,7 @@ from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.experimental import EventsExecutor
 from rclpy.parameter import Parameter
+from sim_diffdrive.dds_profile import use_package_profile
 from sim_diffdrive.dds_teardown import ParticipantHold
 from sim_diffdrive.harness import SimGraph
 from sim_diffdrive.sim.node import UnicycleSim
@@ -49,20 +50,22 @@ EXECUTORS = {'events': EventsExecutor, 'single_threaded': SingleThreadedExecutor
 @contextmanager
 def lockstep_graph(executor_class=EventsExecutor, namespace=None, **sim_params):
     """Yield a SimGraph stepping a simulator; discovery off: no other run adds messages."""
+    use_package_profile()  # before the process's first participant: the holder's
     context = Context()
     with mock.patch.dict(os.environ, {'ROS_AUTOMATIC_DISCOVERY_RANGE': 'OFF'}):
         rclpy.init(context=context)
-    hold = ParticipantHold(context)  # its participant goes last, the safe way
-    graph = SimGraph(context, executor_class)
     try:
-        params = {'publish_clock': True, 'lockstep': False, **sim_params}
-        graph.add_clock_owner(UnicycleSim(
-            stepped=True, context=context, namespace=namespace, enable_rosout=False,
-            parameter_overrides=[Parameter(k, value=v) for k, v in params.items()]))
-        yield graph
+        with ParticipantHold(context):  # its participant goes last, the safe way
+            graph = SimGraph(context, executor_class)
+            try:
+                params = {'publish_clock': True, 'lockstep': False, **sim_params}
+                graph.add_clock_owner(UnicycleSim(
+                    stepped=True, context=context, namespace=namespace, enable_rosout=False,
+                    parameter_overrides=[Parameter(k, value=v) for k, v in params.items()]))
+                yield graph
+            finally:
+                graph.close()
     finally:
-        graph.close()
-        hold.release()
         rclpy.try_shutdown(context=context)
 
 

@@ -156,11 +156,12 @@ def watch_motion(graph, start, stop, motion, rtf, **sim_params):
             result['sim_s'] = (harness.stamp_s(probe.odoms[after])
                                - harness.stamp_s(probe.odoms[before]))
             result['wall_s'] = probe.odom_walls[after] - probe.odom_walls[before]
-        else:  # why the run could not be timed, with what both processes said
-            result['untimed'] = (
-                f'{len(probe.odoms)} odometry heard, {len(moving)} of it moving, the last '
-                f'{"moving" if moving and moving[-1] + 1 == len(probe.odoms) else "at rest"}:\n'
-                + '\n'.join(core.tail(log) for log in logs))
+    if 'sim_s' not in result:  # why the run could not be timed, with what both processes said
+        moving = [odom for odom in probe.odoms if harness.is_moving(odom)]
+        last = 'none' if not probe.odoms else (
+            'moving' if harness.is_moving(probe.odoms[-1]) else 'at rest')
+        result['untimed'] = (f'{len(probe.odoms)} odometry heard, {len(moving)} of it moving, '
+                             f'the last {last}:\n' + '\n'.join(core.tail(log) for log in logs))
     return result
 
 
