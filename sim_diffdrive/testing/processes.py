@@ -70,6 +70,9 @@ class Process:
             weakref.finalize(self, self.log_path.unlink, missing_ok=True)
         self.signalled_at = None  # monotonic time of the last send()
         self.exited_at = None  # monotonic time at which poll() or wait() first saw the exit
+        # ... and the last at which poll() saw it running: it exited in between, whatever the
+        # watcher's own delays (a busy test process polls late).
+        self.running_at = None
 
     @property
     def returncode(self):
@@ -77,7 +80,9 @@ class Process:
 
     def poll(self):
         code = self.popen.poll()
-        if code is not None and self.exited_at is None:
+        if code is None:
+            self.running_at = time.monotonic()
+        elif self.exited_at is None:
             self.exited_at = time.monotonic()
         return code
 
