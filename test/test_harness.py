@@ -38,8 +38,8 @@ from sim_diffdrive.testing.graph import DOMAIN_BLOCK
 # Waits for Ctrl-C, says so, and exits 0 (as the executables do).
 INTERRUPTIBLE = """
 import time
-print('ready', flush=True)
-try:
+try:  # 'ready' only once a Ctrl-C lands in here
+    print('ready', flush=True)
     time.sleep(30)
 except KeyboardInterrupt:
     print('interrupted', flush=True)
