@@ -39,6 +39,7 @@ participant and destroys that node last.
 
 from contextlib import contextmanager
 import ctypes
+import functools
 import os
 import secrets
 
@@ -46,6 +47,7 @@ import rclpy
 from rclpy.context import Context
 from rclpy.impl.implementation_singleton import rclpy_implementation
 from rclpy.utilities import get_rmw_implementation_identifier
+from sim_diffdrive.dds_profile import use_package_profile
 
 # The holding nodes' names: hidden (a leading underscore) from `ros2 node list`; the process
 # id, then random hex, so that `ros2 node list -a` finds no two nodes of one name (containers
@@ -63,7 +65,6 @@ _SET_LISTENER = ('_ZN8eprosima7fastdds3dds17DomainParticipant12set_listenerEPNS1
                  '25DomainParticipantListenerENSt6chrono8durationIlSt5ratioILl1ELl1EEEE')
 # rmw_fastrtps_cpp::get_domain_participant(rmw_node_t*) (rmw_fastrtps_cpp/get_participant.hpp)
 _GET_PARTICIPANT = '_ZN16rmw_fastrtps_cpp22get_domain_participantEP10rmw_node_s'
-_calls = []  # the three functions, found once
 
 
 def _loaded(soname):
@@ -71,14 +72,13 @@ def _loaded(soname):
     return ctypes.CDLL(soname, mode=os.RTLD_NOLOAD | os.RTLD_LAZY)
 
 
+@functools.cache
 def _functions():
     """Return the three functions, or () where a library or symbol is not what it expects."""
-    if not _calls:
-        try:
-            _calls[:] = _find()
-        except (OSError, AttributeError):  # another Fast DDS build: rmw's own wait it is
-            _calls.append(None)
-    return () if _calls[0] is None else _calls
+    try:
+        return _find()
+    except (OSError, AttributeError):  # another Fast DDS build: rmw's own wait it is
+        return ()
 
 
 def _find():
@@ -103,9 +103,10 @@ def release_participant(node):
     RMW than rmw_fastrtps_cpp, or with a Fast DDS whose library does not have the call (rmw
     then detaches it as it always does).  ctypes lets the GIL go while it waits.
     """
-    if get_rmw_implementation_identifier() != 'rmw_fastrtps_cpp' or not _functions():
+    functions = _functions() if get_rmw_implementation_identifier() == 'rmw_fastrtps_cpp' else ()
+    if not functions:
         return False
-    rmw_handle, participant, set_listener = _functions()
+    rmw_handle, participant, set_listener = functions
     handle = getattr(node, 'handle', node)
     with handle:  # the node, and so its participant, cannot go meanwhile
         rmw_node = rmw_handle(handle.pointer)
@@ -129,6 +130,7 @@ class ParticipantHold:
     """
 
     def __init__(self, context):
+        use_package_profile()  # the holder is often the process's first participant
         self.name = HOLDER_NAME.format(pid=os.getpid(), suffix=secrets.token_hex(4))
         self._holder = rclpy_implementation.Node(self.name, '', context.handle, None, False,
                                                  False)

@@ -21,12 +21,15 @@ while held, its listener is detached before it goes, and the holder stays out of
 """
 
 import ctypes
+import os
 
 import rclpy
 from rclpy.context import Context
 from rclpy.node import Node
 from rclpy.utilities import get_rmw_implementation_identifier
 from sim_diffdrive import dds_teardown
+from sim_diffdrive.dds_profile import PROFILE_FILE
+from sim_diffdrive.dds_profile import PROFILE_VARIABLE
 from sim_diffdrive.dds_teardown import held_context
 from sim_diffdrive.dds_teardown import ParticipantHold
 from sim_diffdrive.dds_teardown import release_participant
@@ -65,11 +68,18 @@ def test_a_held_participant_outlives_the_last_node_and_is_let_go():
         rclpy.try_shutdown(context=context)
 
 
-def test_a_held_context_is_shut_down_after_its_participant_went():
+def test_a_held_context_is_shut_down_with_a_node_left_in_it():
     with held_context(domain_id=isolated_domain_id()) as context:
         Node('left_to_the_context', context=context)
         assert context.ok()
     assert not context.ok()
+
+
+def test_the_holder_names_the_package_profile_first(ros_context, monkeypatch):
+    # Often the process's first participant: Fast DDS reads the profile file as it is made.
+    monkeypatch.delenv(PROFILE_VARIABLE, raising=False)
+    with ParticipantHold(ros_context):
+        assert os.environ[PROFILE_VARIABLE] == str(PROFILE_FILE)
 
 
 def test_the_holder_is_a_node_of_no_entities_and_a_name_of_its_own(ros_context):

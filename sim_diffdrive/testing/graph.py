@@ -28,14 +28,12 @@ import os
 import random
 import time
 
-import rclpy
-from rclpy.context import Context
 from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import LaserScan
 from sim_diffdrive.dds_profile import use_package_profile
-from sim_diffdrive.dds_teardown import ParticipantHold
+from sim_diffdrive.dds_teardown import held_context
 from sim_diffdrive.lockstep.counter import clock_topic
 from sim_diffdrive.lockstep.counter import MessageCounter
 from sim_diffdrive.lockstep.handshake import Answer
@@ -295,14 +293,11 @@ class SimGraph(Lockstep):
     """
 
     def __init__(self, context=None, executor_class=EventsExecutor):
-        self._own_context = context is None
-        self._hold = None
         use_package_profile()  # takes effect if no node of this process was made before
+        # A context of its own goes on close(), its participant the safe way (dds_teardown.py).
+        self._own = contextlib.ExitStack()
         if context is None:
-            context = Context()
-            rclpy.init(context=context, domain_id=isolated_domain_id())
-            # Its participant goes on close(), the safe way (sim_diffdrive/dds_teardown.py).
-            self._hold = ParticipantHold(context)
+            context = self._own.enter_context(held_context(domain_id=isolated_domain_id()))
         super().__init__(executor_class(context=context))
         self.context = context
         self._probes = {}  # robot name (None: the one on odom) -> listening Probe
@@ -407,11 +402,7 @@ class SimGraph(Lockstep):
             super().close()
         finally:
             self._probes, self._scans = {}, {}
-            if self._own_context:
-                try:
-                    self._hold.release()
-                finally:
-                    rclpy.try_shutdown(context=self.context)
+            self._own.close()
 
 
 def _overrides(params):

@@ -15,6 +15,7 @@
 """Rows 1-6 (and row 11's runs): the motions and the originals in one process, in lockstep."""
 
 from contextlib import contextmanager
+from contextlib import ExitStack
 from dataclasses import astuple
 import math
 import os
@@ -31,13 +32,10 @@ from motion_challenges.odom_out_and_back import OdomOutAndBack
 from motion_challenges.prompts import RotationRequest
 from motion_challenges.rotate_robot import RotateRobot
 from motion_challenges.timed_out_and_back import TimedOutAndBack
-import rclpy
-from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.experimental import EventsExecutor
 from rclpy.parameter import Parameter
-from sim_diffdrive.dds_profile import use_package_profile
-from sim_diffdrive.dds_teardown import ParticipantHold
+from sim_diffdrive.dds_teardown import held_context
 from sim_diffdrive.harness import SimGraph
 from sim_diffdrive.sim.node import UnicycleSim
 
@@ -50,23 +48,15 @@ EXECUTORS = {'events': EventsExecutor, 'single_threaded': SingleThreadedExecutor
 @contextmanager
 def lockstep_graph(executor_class=EventsExecutor, namespace=None, **sim_params):
     """Yield a SimGraph stepping a simulator; discovery off: no other run adds messages."""
-    use_package_profile()  # before the process's first participant: the holder's
-    context = Context()
-    with mock.patch.dict(os.environ, {'ROS_AUTOMATIC_DISCOVERY_RANGE': 'OFF'}):
-        rclpy.init(context=context)
-    try:
-        with ParticipantHold(context):  # its participant goes last, the safe way
-            graph = SimGraph(context, executor_class)
-            try:
-                params = {'publish_clock': True, 'lockstep': False, **sim_params}
-                graph.add_clock_owner(UnicycleSim(
-                    stepped=True, context=context, namespace=namespace, enable_rosout=False,
-                    parameter_overrides=[Parameter(k, value=v) for k, v in params.items()]))
-                yield graph
-            finally:
-                graph.close()
-    finally:
-        rclpy.try_shutdown(context=context)
+    with ExitStack() as stack:
+        with mock.patch.dict(os.environ, {'ROS_AUTOMATIC_DISCOVERY_RANGE': 'OFF'}):
+            context = stack.enter_context(held_context())  # its participant goes safely
+        graph = stack.enter_context(SimGraph(context, executor_class))
+        params = {'publish_clock': True, 'lockstep': False, **sim_params}
+        graph.add_clock_owner(UnicycleSim(
+            stepped=True, context=context, namespace=namespace, enable_rosout=False,
+            parameter_overrides=[Parameter(k, value=v) for k, v in params.items()]))
+        yield graph
 
 
 def pose(graph):
