@@ -168,10 +168,11 @@ def run(make_node, args=None):
                     executor.shutdown()
             except (Exception, KeyboardInterrupt) as error:  # logged; the cleanup goes on
                 logger.error(f'Executor shutdown failed ({type(error).__name__}: {error})')
-            for node in nodes:
-                if not _destroy(node):
-                    exit_code = EXIT_FAILED
-            if hold is not None and not _release(hold, logger):
+            cleaned = [_cleaned(node.destroy_node, 'destroy_node', node.get_logger())
+                       for node in nodes]
+            if hold is not None:
+                cleaned.append(_cleaned(hold.release, 'Releasing the DDS participant', logger))
+            if not all(cleaned):
                 exit_code = EXIT_FAILED
         finally:
             rclpy.try_shutdown()
@@ -183,22 +184,12 @@ def _as_list(nodes):
     return list(nodes) if isinstance(nodes, (list, tuple)) else [nodes]
 
 
-def _destroy(node):
-    """Destroy the node; return False when that failed (it is logged), so the others still go."""
+def _cleaned(call, what, logger):
+    """Call call(); return False when it failed (logged as what), so the cleanup goes on."""
     try:
-        node.destroy_node()
+        call()
     except Exception as error:
-        node.get_logger().error(f'destroy_node failed ({type(error).__name__}: {error})')
-        return False
-    return True
-
-
-def _release(hold, logger):
-    """Let the held DDS participant go; return False when that failed (it is logged)."""
-    try:
-        hold.release()
-    except Exception as error:
-        logger.error(f'Releasing the DDS participant failed ({type(error).__name__}: {error})')
+        logger.error(f'{what} failed ({type(error).__name__}: {error})')
         return False
     return True
 
