@@ -145,21 +145,19 @@ def watch_motion(graph, start, stop, motion, rtf, **sim_params):
     left = LEFT.search(logs[-1]) if len(logs) > 1 else None
     if left:
         result['answers_per_step'] = int(left.group(1)) / max(int(left.group(2)), 1)
+    moving = [i for i, odom in enumerate(probe.odoms) if harness.is_moving(odom)]
     if probe.odoms:
         x, y, yaw = harness.pose_of(probe.odoms[0])
         goal = x, y, math.remainder(yaw + math.radians(turn_deg), 2.0 * math.pi)
         result.update(goal=goal, end=harness.pose_of(probe.odom))
         result['error_mm'], result['error_deg'] = closure(goal, result['end'])
-        moving = [i for i, odom in enumerate(probe.odoms) if harness.is_moving(odom)]
-        if moving and moving[-1] + 1 < len(probe.odoms):
-            before, after = max(moving[0] - 1, 0), moving[-1] + 1
-            result['sim_s'] = (harness.stamp_s(probe.odoms[after])
-                               - harness.stamp_s(probe.odoms[before]))
-            result['wall_s'] = probe.odom_walls[after] - probe.odom_walls[before]
-    if 'sim_s' not in result:  # why the run could not be timed, with what both processes said
-        moving = [odom for odom in probe.odoms if harness.is_moving(odom)]
-        last = 'none' if not probe.odoms else (
-            'moving' if harness.is_moving(probe.odoms[-1]) else 'at rest')
+    if moving and moving[-1] + 1 < len(probe.odoms):  # at rest before and after
+        before, after = max(moving[0] - 1, 0), moving[-1] + 1
+        result['sim_s'] = (harness.stamp_s(probe.odoms[after])
+                           - harness.stamp_s(probe.odoms[before]))
+        result['wall_s'] = probe.odom_walls[after] - probe.odom_walls[before]
+    else:  # why the run could not be timed, with what both processes said
+        last = 'none' if not probe.odoms else 'moving' if moving else 'at rest'
         result['untimed'] = (f'{len(probe.odoms)} odometry heard, {len(moving)} of it moving, '
                              f'the last {last}:\n' + '\n'.join(core.tail(log) for log in logs))
     return result
