@@ -392,7 +392,7 @@ def test_a_message_from_a_sender_that_left_and_is_gone_is_not_waited_for_long(gr
 @contextmanager
 def other_type_teleop(domain_id):
     """
-    Return a node of a context (a DDS participant) of its own, as another process would be.
+    Yield a node of a context (a DDS participant) of its own, as another process would be.
 
     It publishes TwistStamped (Nav2's cmd_vel on Jazzy) on robot b's cmd_vel and only subscribes
     to it on robot a's.  One participant cannot hold two types on one topic; another can, in
