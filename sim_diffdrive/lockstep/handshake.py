@@ -78,16 +78,23 @@ class Answer:
         """Parse an answer; raise ValueError when the text is not one."""
         try:
             data = json.loads(text)
-            return cls(str(data['id']), str(data['node']), int(data['step_ns']),
+            return cls(str(data['id']), str(data['node']), _integer(data['step_ns']),
                        _counts(data.get('sent', {})), _counts(data.get('heard', {})),
                        bool(data.get('leaving', False)), _counts(data.get('sent_stamp', {})),
                        _counts(data.get('heard_stamp', {})))
-        except (TypeError, KeyError, AttributeError, json.JSONDecodeError) as error:
+        except (TypeError, KeyError, AttributeError, ValueError, RecursionError) as error:
             raise ValueError(f'not a lockstep answer: {error}') from None
 
 
+def _integer(value):
+    """Return value if it is a JSON integer; raise ValueError (a float, NaN, Infinity, ...)."""
+    if type(value) is not int:
+        raise ValueError(f'{value!r} is not an integer')
+    return value
+
+
 def _counts(data):
-    return {str(topic): int(count) for topic, count in data.items()}
+    return {str(topic): _integer(count) for topic, count in data.items()}
 
 
 @dataclass
@@ -123,10 +130,11 @@ class Roster:
         """Parse a roster; raise ValueError when the text is not one."""
         try:
             data = json.loads(text)
-            return cls(str(data['owner']), int(data['step_ns']), {str(m) for m in data['members']},
+            return cls(str(data['owner']), _integer(data['step_ns']),
+                       {str(m) for m in data['members']},
                        {str(t) for t in data.get('heard_topics', ())},
                        [str(w) for w in data.get('waiting', ())], _counts(data.get('dropped', {})))
-        except (TypeError, KeyError, ValueError, AttributeError) as error:
+        except (TypeError, KeyError, ValueError, AttributeError, RecursionError) as error:
             raise ValueError(f'not a lockstep roster: {error}') from None
 
 
