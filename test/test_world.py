@@ -276,3 +276,15 @@ def test_a_robot_placed_in_the_map_keeps_its_odometry_and_moves_map_to_odom():
         (3.0 + math.cos(1.0), -1.0 + math.sin(1.0), 1.0), abs=1e-12)
     assert (world.x[0], world.y[0]) == pytest.approx(
         (1.0 + math.cos(0.25), 0.5 + math.sin(0.25)), abs=1e-12)
+
+
+def test_of_held_commands_for_one_moment_the_later_counts():
+    # A controller's command and then its final stop, both stamped T and ahead of the clock.
+    world = World([(0.0, 0.0, 0.0)])
+    world.begin(0)
+    world.hold(0, 100_000_000, 0.2, 0.0)
+    world.hold(0, 100_000_000, 0.0, 0.0)
+    world.hold(0, 50_000_000, 0.1, 0.0)
+    world.step_to(200_000_000)
+    assert world.commanded[0] == (0.0, 0.0) and world.linear[0] == 0.0
+    assert world.x[0] == pytest.approx(0.1 * 0.05, abs=1e-15)

@@ -58,6 +58,10 @@ Odometry = namedtuple('Odometry', 'stamp_ns x y qz qw linear angular')
 Event = namedtuple('Event', 'kind robot data')
 
 
+def _stamp(held):
+    return held[0]
+
+
 class PlacementError(ValueError):
     """A robot may not be placed there: in a wall, or on another robot."""
 
@@ -156,7 +160,8 @@ class World:
 
     def hold(self, i, stamp_ns, linear, angular):
         """Keep a command stamped ahead of the clock for robot i; it applies at its stamp."""
-        bisect.insort(self.early[i], (stamp_ns, linear, angular))
+        # After those of the same stamp: of two commands for one moment the later counts.
+        bisect.insort(self.early[i], (stamp_ns, linear, angular), key=_stamp)
         self.has_early[i] = True
         self.resting = False
 
