@@ -30,10 +30,20 @@ def quaternion_from_yaw(yaw):
     return (0.0, 0.0, math.sin(half), math.cos(half))
 
 
+# Within this size (and above its inverse) a quaternion's products are exact enough as they are.
+_SCALE_FREE = 2.0 ** 500
+
+
 def yaw_from_quaternion(x, y, z, w):
     """Return the yaw in (-pi, pi] of a quaternion (tolerates a non-unit one)."""
     # w^2 + x^2 - y^2 - z^2 rather than 1 - 2(y^2 + z^2): the same for a unit quaternion, and
     # scale-free.  atan2 can return -pi for a half turn (yaw -pi in): wrap it to +pi.
+    largest = max(abs(x), abs(y), abs(z), abs(w))
+    if largest > _SCALE_FREE or 0.0 < largest < 1.0 / _SCALE_FREE:
+        # Products would overflow to inf (a NaN yaw) or underflow to 0: scale by a power of
+        # two, which changes no digit.
+        exponent = math.frexp(largest)[1]
+        x, y, z, w = (math.ldexp(c, -exponent) for c in (x, y, z, w))
     return normalize_angle(math.atan2(2.0 * (w * z + x * y), w * w + x * x - y * y - z * z))
 
 

@@ -97,6 +97,19 @@ def test_an_unusable_initialpose_is_refused(graph, frame, x, yaw):
     assert pose_of(graph.odom()) == (0.5, 0.0, 0.0)
 
 
+def test_a_quaternion_of_any_finite_size_gives_its_heading(graph):
+    # A product of two components of 1e200 overflows: the heading was NaN, and with a map the
+    # next step ended the simulator.
+    graph.sim(initial_x=0.5)
+    publisher = rviz(graph, 'initialpose')
+    msg = pose_estimate('odom', 1.0, 1.0, 0.0)
+    msg.pose.pose.orientation.z = msg.pose.pose.orientation.w = 1e200
+    publisher.publish(msg)
+    graph.step_for(0.2)
+    x, y, yaw = pose_of(graph.odom())
+    assert (x, y) == (1.0, 1.0) and yaw == pytest.approx(math.pi / 2, abs=1e-15)
+
+
 def test_a_zero_quaternion_is_refused(graph):
     graph.sim(initial_x=0.5)
     publisher = rviz(graph, 'initialpose')

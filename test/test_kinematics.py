@@ -365,6 +365,15 @@ def test_yaw_from_quaternion_stays_in_range():
         pytest.approx(0.7, abs=1e-15))
 
 
+@pytest.mark.parametrize('scale', [1e200, 1e-200, 1e-320, 1.7e308])
+def test_yaw_from_quaternion_of_any_finite_size(scale):
+    # Its products would overflow (a NaN yaw) or underflow (atan2(0, 0) = 0) unscaled.
+    assert yaw_from_quaternion(0.0, 0.0, scale, scale) == pytest.approx(math.pi / 2, abs=1e-15)
+    if scale > 1e-300:  # a subnormal number holds too few digits for more
+        assert yaw_from_quaternion(0.0, 0.0, scale * math.sin(0.35), scale * math.cos(0.35)) == (
+            pytest.approx(0.7, abs=1e-15))
+
+
 def test_yaw_accumulator_counts_whole_turns():
     acc = YawAccumulator()
     assert acc.update(0.3) == 0.0
