@@ -28,6 +28,8 @@ from sim_diffdrive.kinematics import SMALL_ANGLE
 from sim_diffdrive.kinematics import UnicycleModel
 from sim_diffdrive.sim.world import ONE_BY_ONE
 from sim_diffdrive.sim.world import World
+from sim_diffdrive.world.contact import Walls
+from sim_diffdrive.world.grid import GridMap
 
 _NS = 1_000_000_000
 
@@ -288,3 +290,33 @@ def test_of_held_commands_for_one_moment_the_later_counts():
     world.step_to(200_000_000)
     assert world.commanded[0] == (0.0, 0.0) and world.linear[0] == 0.0
     assert world.x[0] == pytest.approx(0.1 * 0.05, abs=1e-15)
+
+
+def open_floor():
+    """Return the walls of a 5 m x 5 m map with none inside: robots solid to each other."""
+    return Walls(GridMap.from_rows(['.' * 100] * 100, resolution=0.05), 0.1)
+
+
+def test_a_held_command_after_a_touch_in_the_same_step_still_counts():
+    world = World([(1.0, 1.0, 0.0), (1.25, 1.0, 0.0)], walls=open_floor())
+    world.begin(0)
+    world.command(0, 1.0, 0.0, 0)  # 0.05 m between the discs: they touch at 0.05 s
+    world.hold(0, 100_000_000, -0.5, 0.0)  # back off from 0.1 s on
+    world.step_to(100_000_000)
+    assert [event.kind for event in world.take_events()] == ['robot', 'robot']
+    assert world.commanded[0] == (-0.5, 0.0) and world.x[0] == pytest.approx(1.05, abs=1e-12)
+    world.step_to(200_000_000)
+    assert world.x[0] == pytest.approx(1.0, abs=1e-12) and world.take_events() == []
+
+
+def test_held_commands_move_a_robot_among_walls_as_on_the_empty_plane():
+    poses = [(1.0, 1.0, 0.3), (4.0, 4.0, 0.0)]
+    plane, walled = World(poses), World(poses, walls=open_floor())
+    for world in (plane, walled):
+        world.begin(0)
+        world.command(0, 0.3, 0.2, 0)
+        world.hold(0, 30_000_000, 0.1, -0.4)
+        world.hold(0, 30_000_000, 0.2, 0.5)
+        world.hold(0, 40_000_000, 0.4, 0.1)
+        world.step_to(50_000_000)
+    assert state(walled, 0) == state(plane, 0) and walled.commanded == plane.commanded

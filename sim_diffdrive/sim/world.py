@@ -244,13 +244,13 @@ class World:
             integrated[:] = now_ns
             return self.odometry()
         if self.walls is not None:
-            known = integrated[integrated != NOT_YET]
-            begin_ns = min(int(known.min()), now_ns) if known.size else now_ns
-            self._drives, self._begin_ns = {}, begin_ns
-            for i in range(len(self)):
-                self._advance(i, now_ns)
-            drives, self._drives = self._drives, None
-            self._collide(begin_ns, drives)
+            # As command() does: every robot up to a held command's stamp, touches resolved,
+            # then the command (a touch before it must not cancel it).
+            for stamp_ns, i, linear, angular in self._due(now_ns):
+                self._solid_step(max(stamp_ns, int(integrated.max())))
+                self._command(i, linear, angular)
+                self._set_last_command(i, stamp_ns)
+            self._solid_step(now_ns)
         elif self.one_by_one:
             for i in range(len(self.names)):
                 self._advance(i, now_ns)
@@ -261,6 +261,30 @@ class World:
                 or self.target_angular.any() or self.has_early.any()):
             self.resting = True
         return self.odometry()
+
+    def _due(self, now_ns):
+        """Take the held commands due by now_ns out: (stamp, robot, linear, angular) in order."""
+        integrated = self.integrated_ns
+        if NOT_YET in integrated or now_ns < integrated.max():
+            return []  # a first step, or a clock gone back: _advance's way
+        due = []
+        for i, early in enumerate(self.early):
+            while early and early[0][0] <= now_ns:
+                stamp_ns, linear, angular = early.pop(0)
+                due.append((stamp_ns, i, linear, angular))
+            self.has_early[i] = bool(early)
+        due.sort(key=_stamp)  # stable: one robot's keep their order
+        return due
+
+    def _solid_step(self, now_ns):
+        """Advance every robot up to now_ns; stop those that touched each other on the way."""
+        known = self.integrated_ns[self.integrated_ns != NOT_YET]
+        begin_ns = min(int(known.min()), now_ns) if known.size else now_ns
+        self._drives, self._begin_ns = {}, begin_ns
+        for i in range(len(self)):
+            self._advance(i, now_ns)
+        drives, self._drives = self._drives, None
+        self._collide(begin_ns, drives)
 
     def _advance_in_numpy(self, now_ns):
         """step_to for a large fleet on the empty plane: one numpy call for the steady."""
