@@ -320,3 +320,31 @@ def test_held_commands_move_a_robot_among_walls_as_on_the_empty_plane():
         world.hold(0, 40_000_000, 0.4, 0.1)
         world.step_to(50_000_000)
     assert state(walled, 0) == state(plane, 0) and walled.commanded == plane.commanded
+
+
+def test_robots_are_put_back_all_at_once():
+    # robot2 stands where robot1 started, robot1 elsewhere: ~/reset puts both back, in their
+    # odometry and in the map (map -> odom as at the start, though robot1 was set in the map).
+    world = World([(1.0, 1.0, 0.0), (2.0, 1.0, 0.0)], names=['robot1', 'robot2'],
+                  walls=open_floor())
+    world.place_in_map(0, 3.0, 3.0, 1.0)
+    world.place(1, 1.0, 1.05, 0.0)
+    assert world.reset_all([(1.0, 1.0, 0.0), (2.0, 1.0, 0.5)]) == {}
+    assert [state(world, i)[:3] for i in (0, 1)] == [(1.0, 1.0, 0.0), (2.0, 1.0, 0.5)]
+    assert [pose.tolist() for pose in world.map_poses()] == [[1.0, 2.0], [1.0, 1.0], [0.0, 0.5]]
+
+
+def test_a_robot_refused_its_place_stays_and_others_keep_off_it():
+    world = World([(1.0, 1.0, 0.0), (3.0, 3.0, 0.0), (4.0, 4.0, 0.0), (4.0, 1.0, 0.0)],
+                  names=['a', 'b', 'c', 'd'], walls=open_floor())
+    refused = world.reset_all([(2.0, 2.0, 0.0), (2.0, 2.1, 0.0), (1.0, 1.0, 0.0),
+                               (3.0, 1.0, 0.0)])
+    assert {i: str(error) for i, error in refused.items()} == {
+        0: 'a at (2.000, 2.000) in the map would be on b at (2.000, 2.100)',
+        1: 'b at (2.000, 2.100) in the map would be on a at (2.000, 2.000)',
+        2: 'c at (1.000, 1.000) in the map would be on a at (1.000, 1.000)'}
+    assert [state(world, i)[:2] for i in range(4)] == [
+        (1.0, 1.0), (3.0, 3.0), (4.0, 4.0), (3.0, 1.0)]
+    # On the empty plane robots pass through each other: nothing is refused.
+    plane = World([(0.0, 0.0, 0.0)] * 2)
+    assert plane.reset_all([(1.0, 1.0, 0.0)] * 2) == {} and plane.x.tolist() == [1.0, 1.0]

@@ -352,3 +352,29 @@ def test_a_reset_into_a_wall_is_refused_and_the_robot_stays(graph, capfd):
     err = capfd.readouterr().err
     assert 'Refusing ~/reset: the robot at (2.050, 0.300) in the map would be inside a wall' in err
     assert 'Reset to the initial pose' not in err
+
+
+def test_a_reset_puts_every_robot_back_though_one_stands_on_anothers_start(graph, capfd):
+    sim = graph.sim(map_file=ROOM, robots=['robot1', 'robot2'],
+                    initial_poses=[0.5, 0.3, 0.0, 1.0, 0.3, 0.0])
+    rviz = graph.add(Node('rviz', context=graph.context))
+    publishers = [rviz.create_publisher(PoseWithCovarianceStamped, f'/{name}/initialpose', 10)
+                  for name in ('robot1', 'robot2')]
+    client = rviz.create_client(Empty, '/unicycle_sim/reset')
+    graph.step_for(0.2)
+    publishers[0].publish(pose_estimate('map', 0.5, 1.5, 0.0))
+    graph.step_for(0.1)
+    publishers[1].publish(pose_estimate('map', 0.5, 0.35, 0.0))  # on robot1's start
+    graph.step_for(0.1)
+
+    def in_map():
+        return [(float(x), float(y)) for x, y in zip(*sim.world.map_poses()[:2])]
+    assert in_map() == [(0.5, 1.5), (0.5, 0.35)]
+    assert graph.spin_until(client.call_async(Empty.Request()).done, timeout=10.0)
+    graph.step_for(0.1)
+    # At the start again: in the map (map -> odom the identity) and in odometry.
+    assert in_map() == [(0.5, 0.3), (1.0, 0.3)]
+    assert [graph.pose(name) for name in ('robot1', 'robot2')] == [(0.5, 0.3, 0.0),
+                                                                   (1.0, 0.3, 0.0)]
+    err = capfd.readouterr().err
+    assert 'Reset every robot to its initial pose' in err and 'Refusing' not in err

@@ -284,14 +284,15 @@ class UnicycleSim(Node):
 
     def _on_reset(self, request, response):
         self.world.step_to(self.now_ns())  # up to now, the old poses held
-        refused = 0
-        for robot, pose in zip(self.robots, self._initial_poses(len(self.robots))):
-            try:
-                robot.reset(*pose)
-            except PlacementError as error:
-                refused += 1
-                self.get_logger().warning(f'Refusing ~/reset: {error}; the robot stays where '
-                                          'it is')
+        # All at once: a robot may go where another stands that goes elsewhere.
+        errors = self.world.reset_all(self._initial_poses(len(self.robots)))
+        for i, robot in enumerate(self.robots):
+            if i in errors:
+                self.get_logger().warning(f'Refusing ~/reset: {errors[i]}; the robot stays '
+                                          'where it is')
+            else:
+                robot.placed()
+        refused = len(errors)
         if refused < len(self.robots):
             self.get_logger().info(
                 ('Reset every robot to its initial pose' if not refused

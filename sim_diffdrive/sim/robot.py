@@ -103,6 +103,10 @@ class Robot:
     def reset(self, x, y, yaw):
         """Put the robot back at (x, y, yaw), at rest; forget commands and the driven path."""
         self.world.place(self.index, x, y, yaw)
+        self.placed()
+
+    def placed(self):
+        """Forget the driven path: the world has put the robot somewhere else."""
         self.path.clear()
 
     def on_initial_pose(self, msg):

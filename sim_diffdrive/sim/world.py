@@ -195,6 +195,37 @@ class World:
         self.map_yaw[i] = turn
         self._rest(i, ox, oy, oyaw)
 
+    def reset_all(self, poses):
+        """
+        Put every robot back as at the start, all at once: at rest at (x, y, yaw), map -> odom.
+
+        The poses are in each odometry frame, which lies on the map again (map -> odom the
+        identity).  Each is checked against the walls and where the others go: one whose pose
+        is in a wall, on another's new pose or on a robot that stays is refused and stays where
+        it is.  Return {robot: PlacementError} of those refused.
+        """
+        refused = {}
+        if self.walls is not None:
+            targets = [(x, y, normalize_angle(yaw)) for x, y, yaw in poses]
+            while True:
+                mx, my, _ = self.map_poses()
+                where = [(mx[j], my[j]) if j in refused else targets[j][:2]
+                         for j in range(len(self))]
+                errors = {}
+                for i in set(range(len(self))) - set(refused):
+                    try:
+                        self._check_place(i, *targets[i], where)
+                    except PlacementError as error:
+                        errors[i] = error
+                if not errors:
+                    break
+                refused.update(errors)
+        for i, pose in enumerate(poses):
+            if i not in refused:
+                self.map_x[i] = self.map_y[i] = self.map_yaw[i] = 0.0
+                self._rest(i, *pose)
+        return refused
+
     def _rest(self, i, x, y, yaw):
         self.x[i], self.y[i], self.yaw[i] = x, y, normalize_angle(yaw)
         self._halt(i)
@@ -204,18 +235,24 @@ class World:
         self.touching[i] = None
         self.resting = False
 
-    def _check_place(self, i, x, y, yaw):
-        """Raise PlacementError if robot i at (x, y) in the map would be in a wall or a robot."""
+    def _check_place(self, i, x, y, yaw, others=None):
+        """
+        Raise PlacementError if robot i at (x, y) in the map would be in a wall or a robot.
+
+        others: (x, y) in the map of every robot (i's own is not looked at); default: where
+        they are.
+        """
         name = self.names[i] or 'the robot'
         if self.walls.overlaps(x, y):
             raise PlacementError(f'{name} at ({x:.3f}, {y:.3f}) in the map would be inside a '
                                  f'wall (robot_radius {self.radius:g} m)')
-        mx, my, _ = self.map_poses()
-        for j in range(len(self)):
-            if j != i and overlaps_robot(self.radius, x, y, float(mx[j]), float(my[j])):
+        if others is None:
+            others = list(zip(*self.map_poses()[:2]))
+        for j, (ox, oy) in enumerate(others):
+            if j != i and overlaps_robot(self.radius, x, y, float(ox), float(oy)):
                 raise PlacementError(
                     f'{name} at ({x:.3f}, {y:.3f}) in the map would be on '
-                    f'{self.names[j] or "another robot"} at ({mx[j]:.3f}, {my[j]:.3f})')
+                    f'{self.names[j] or "another robot"} at ({ox:.3f}, {oy:.3f})')
 
     def _command(self, i, linear, angular):
         limits = self.limits
