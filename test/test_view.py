@@ -259,6 +259,9 @@ def test_a_free_port_is_one_no_outgoing_connection_can_take_first():
     for port in {free_port() for _ in range(8)}:
         assert 10000 <= port < ephemeral_ports().start
         with socket.socket() as server:
+            # As the page's server and the rerun program bind: a connection to an earlier
+            # server on that port, left in TIME_WAIT, does not keep it from them.
+            server.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
             server.bind(('127.0.0.1', port))
 
 
