@@ -168,7 +168,7 @@ class UnicycleSim(Node):
         self.step_ns = round(_NS / p.rate_hz)
         self.clock = make_clock(self, stepped)
         self.taps = open_taps(self)
-        self.robots = [Robot(self, i, name, self.publish_odom, self.take_command)
+        self.robots = [Robot(self, i, name, self.take_command)
                        for i, name in enumerate(names)]
         # A frame is checked against the other's value and the robots' prefixes, which a Spec
         # cannot know; added after declare()'s callbacks, this one runs before them.
@@ -298,8 +298,7 @@ class UnicycleSim(Node):
                 ('Reset every robot to its initial pose' if not refused
                  else f'Reset {len(self.robots) - refused} robot(s) to their initial poses')
                 if self.params.robots else 'Reset to the initial pose')
-        self.publish_odom()
-        return response
+        return response  # the next step's odometry shows it (as an initialpose's)
 
     # -- odometry ---------------------------------------------------------------------------
 

@@ -58,18 +58,17 @@ class Robot:
 
     ``name`` is '' for the simulator's one robot in its own namespace.  The node ``sim`` is
     used to make the robot's topics only: a robot holds what it hands commands and poses to
-    (the world, the clock, the taps, the logger), not the node.  ``on_placed`` is how the node
-    hears that a robot was set down somewhere; ``on_command(robot, data)`` is what the cmd_vel
-    subscription calls with each command's bytes: the node hands them to ``take``, then steps
-    if due, so that nothing the robot calls calls back into the node.
+    (the world, the clock, the taps, the logger), not the node.  ``on_command(robot, data)``
+    is what the cmd_vel subscription calls with each command's bytes: the node hands them to
+    ``take``, then steps if due, so that nothing the robot calls calls back into the node.
     """
 
-    def __init__(self, sim, index, name, on_placed, on_command):
+    def __init__(self, sim, index, name, on_command):
         self.world, self.clock, self.taps, self.params = sim.world, sim.clock, sim.taps, sim.params
         self.logger = sim.get_logger()
         self._namespace = sim.get_namespace()
         self._map_frame = sim.surroundings.map_frame if sim.surroundings else None
-        self.index, self.name, self._on_placed = index, name, on_placed
+        self.index, self.name = index, name
         self._warned_publishers = self._warned_type = False
         # How many publishers' commands reach cmd_vel, as DDS last said (its matched event).
         self.cmd_publishers = 0
@@ -139,9 +138,10 @@ class Robot:
             self.logger.warning(f'{self.label}Refusing initialpose: it {why}; the robot stays '
                                 'where it is')
             return
+        # The next step's odometry shows it: one published now would bear the stamp of the
+        # step already out with another pose (tf2 drops a repeated stamp).
         self.logger.info(f'{self.label}Set to ({p.position.x:.3f}, {p.position.y:.3f}, '
                          f'{yaw:.3f} rad) in {given} by initialpose, at rest')
-        self._on_placed()
 
     # -- commands ---------------------------------------------------------------------------
 
