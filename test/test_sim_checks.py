@@ -28,6 +28,7 @@ with the package to install, and the simulator runs without it.
 
 from contextlib import contextmanager
 import os
+from pathlib import Path
 import re
 import sys
 import time
@@ -48,6 +49,8 @@ from sim_diffdrive.parameters import ParameterError
 import sim_diffdrive.sim.clock as clock_module
 import sim_diffdrive.sim.node as node_module
 from sim_diffdrive.sim.node import UnicycleSim
+
+ROOM = str(Path(__file__).resolve().parents[1] / 'maps' / 'room.yaml')
 
 
 class Logs:
@@ -99,6 +102,16 @@ def frames(odom):
     ('/', {'base_frame_id': 'base_link\t'}, 'base_frame_id'),
     ('/', {'odom_frame_id': '/map'}, 'odom_frame_id'),
     ('/robot1', {'base_frame_id': '/base_link'}, 'base_frame_id'),
+    # With a map, its frame and the scan's too: map -> map, map -> odom -> map, a frame that
+    # /tf_static's base -> scan would give a second parent.
+    ('/', {'map_file': ROOM, 'odom_frame_id': 'map'}, 'odom_frame_id'),
+    ('/', {'map_file': ROOM, 'base_frame_id': 'map'}, 'base_frame_id'),
+    ('/', {'map_file': ROOM, 'map_frame_id': 'odom'}, 'map_frame_id'),
+    ('/', {'map_file': ROOM, 'map_frame_id': '/map'}, 'map_frame_id'),
+    ('/', {'map_file': ROOM, 'map_frame_id': ''}, 'map_frame_id'),
+    ('/', {'map_file': ROOM, 'scan_frame_id': 'base_footprint'}, 'scan_frame_id'),
+    ('/', {'map_file': ROOM, 'scan_frame_id': 'map'}, 'scan_frame_id'),
+    ('/', {'map_file': ROOM, 'robots': ['r1', 'r2'], 'scan_frame_id': 'odom'}, 'scan_frame_id'),
 ])
 def test_a_bad_frame_at_start_is_refused_by_name(ros_context, namespace, params, named):
     with pytest.raises(ParameterError) as info:
@@ -171,6 +184,17 @@ def test_a_bad_frame_set_live_is_refused_by_name_and_the_frames_stay(graph, name
     assert set_param(graph, client, 'odom_frame_id', 'map').successful
     graph.step()
     assert frames(probe.odom) == ('map', 'base_footprint')
+
+
+def test_a_frame_set_live_is_compared_with_the_maps(graph):
+    sim = graph.sim(map_file=ROOM, initial_x=0.5, initial_y=0.3)
+    for name in ('odom_frame_id', 'base_frame_id'):
+        result = sim.set_parameters([Parameter(name, value='map')])[0]
+        assert not result.successful and f"parameter '{name}'" in result.reason
+        result = sim.set_parameters([Parameter(name, value='base_scan')])[0]
+        assert not result.successful and "as 'scan_frame_id'" in result.reason
+    graph.step()
+    assert frames(graph.odom()) == ('odom', 'base_footprint')
 
 
 def test_a_frame_set_live_is_compared_as_the_robots_publish_it(graph):

@@ -148,10 +148,11 @@ class UnicycleSim(Node):
             raise ParameterError("parameter 'publish_clock' is true, so this node owns time: "
                                  "'use_sim_time' must be false for it")
         names = robot_names(p.robots)
-        # Of two frames that are one, name the one changed from its default (odom's if both).
-        blame = ('odom_frame_id' if p.odom_frame_id != DEFAULT_FRAMES['odom_frame_id']
-                 else 'base_frame_id')
-        check_frames(self.get_namespace(), names, self._frame_values(), blame)
+        # Of two frames that are one, name one changed from its default (the first such).
+        frames = self._frame_values()
+        blame = next((spec.name for spec in PARAMETERS if spec.name in frames
+                      and frames[spec.name] != spec.default), 'base_frame_id')
+        check_frames(self.get_namespace(), names, frames, blame)
         if p.initial_poses and len(p.initial_poses) != 3 * len(names):
             raise ParameterError(
                 f"parameter 'initial_poses' must hold x, y, yaw for each of the {len(names)} "
@@ -266,7 +267,10 @@ class UnicycleSim(Node):
         # the lockstep owner, max_command_age by the stamped subscription.
 
     def _frame_values(self):
-        return {name: getattr(self.params, name) for name in DEFAULT_FRAMES}
+        """Return the frame parameters' values: the robots', and with a map its frames."""
+        names = [*DEFAULT_FRAMES, *(('map_frame_id', 'scan_frame_id') if self.params.map_file
+                                    else ())]
+        return {name: getattr(self.params, name) for name in names}
 
     def _refuse_bad_frames(self, parameters):
         """Refuse a live set of frames that tf2 could not use; the frames stay as they were."""

@@ -33,6 +33,8 @@ TF_QOS = QoSProfile(depth=100)
 # The parameters that name a robot's frames and their defaults (node.py's Specs take them from
 # here); only a default gets the namespace's prefix.
 DEFAULT_FRAMES = {'odom_frame_id': 'odom', 'base_frame_id': 'base_footprint'}
+# The frames that get the namespace's (and a fleet robot's) prefix by default: their defaults.
+_PREFIXED = {**DEFAULT_FRAMES, 'scan_frame_id': 'base_scan'}
 
 
 def namespaced_frame(namespace, frame):
@@ -48,7 +50,9 @@ def resolve_frame(namespace, frame, default):
 
 def published_frame(namespace, robot, parameter, value):
     """Return the frame that value of parameter gives robot ('' for a simulator's one robot)."""
-    frame = resolve_frame(namespace, value, DEFAULT_FRAMES[parameter])
+    if parameter not in _PREFIXED:
+        return value  # the map's: shared by every robot, as given
+    frame = resolve_frame(namespace, value, _PREFIXED[parameter])
     return namespaced_frame(robot, frame) if robot else frame
 
 
@@ -56,22 +60,26 @@ def check_frames(namespace, robots, frames, blame):
     """
     Raise ParameterError, naming the parameter, if tf2 could not use the frames given.
 
-    frames maps each parameter of DEFAULT_FRAMES to its value; robots are the simulator's
-    robot names ('' for its one robot).  Both frames are compared as each robot publishes
-    them, after the prefixes; blame is the parameter named when they are one frame.
+    frames maps each parameter of DEFAULT_FRAMES (and with a map, map_frame_id and
+    scan_frame_id) to its value; robots are the simulator's robot names ('' for its one
+    robot).  The frames are compared as each robot publishes them, after the prefixes (the
+    map's is shared, as given): two that are one would make a transform from a frame to
+    itself, or give a frame two parents.  blame is the parameter named then.
     """
     for parameter, value in frames.items():
         why = _unusable(value)
         if why:
             raise ParameterError(f"parameter '{parameter}' {why}; got {value!r}")
-    other = next(name for name in DEFAULT_FRAMES if name != blame)
     for robot in robots:
-        odom, base = (published_frame(namespace, robot, parameter, frames[parameter])
-                      for parameter in DEFAULT_FRAMES)
-        if odom == base:
-            raise ParameterError(f"parameter '{blame}' gives the same frame as '{other}', "
-                                 f'{odom!r}: odometry and /tf would carry a transform from '
-                                 f'{odom} to itself, which tf2 rejects; got {frames[blame]!r}')
+        published = {}
+        for parameter in sorted(frames, key=lambda name: name == blame):  # blame's last
+            frame = published_frame(namespace, robot, parameter, frames[parameter])
+            if frame in published:
+                raise ParameterError(
+                    f"parameter '{parameter}' gives the same frame as '{published[frame]}', "
+                    f'{frame!r}: /tf would carry a transform from {frame} to itself or give it '
+                    f'two parents, which tf2 rejects; got {frames[parameter]!r}')
+            published[frame] = parameter
 
 
 def _unusable(frame):

@@ -32,9 +32,8 @@ from sensor_msgs.msg import LaserScan
 from sim_diffdrive.angles import quaternion_from_yaw
 from sim_diffdrive.parameters import ParameterError
 from sim_diffdrive.parameters import Spec
-from sim_diffdrive.sim.odom_tf import namespaced_frame
 from sim_diffdrive.sim.odom_tf import OdomTransform
-from sim_diffdrive.sim.odom_tf import resolve_frame
+from sim_diffdrive.sim.odom_tf import published_frame
 from sim_diffdrive.world.contact import Walls
 from sim_diffdrive.world.grid import load_map
 from sim_diffdrive.world.grid import MapError
@@ -106,8 +105,8 @@ class Surroundings:
             'angle_min', 'angle_max', 'angle_increment', 'range_min', 'range_max')}
         self._scan_fields['scan_time'] = self._scan_every / p.rate_hz
         self._steps = 0
-        scan_frame = resolve_frame(node.get_namespace(), p.scan_frame_id, 'base_scan')
-        self._scan_frames = [namespaced_frame(name, scan_frame) for name in names]
+        self._scan_frames = [published_frame(node.get_namespace(), name, 'scan_frame_id',
+                                             p.scan_frame_id) for name in names]
         self._map_pub = node.create_publisher(OccupancyGrid, 'map', LATCHED_QOS)
         self._static_pub = node.create_publisher(TFMessage, '/tf_static', LATCHED_QOS)
         self._map_tf = OdomTransform(node)  # map -> odom, laid out by start()
