@@ -243,6 +243,16 @@ def test_image_path_absolute_and_relative(tmp_path):
     assert grid.origin == (1.0, 2.0, 0.5) and grid.resolution == 0.5
 
 
+def test_numbers_are_read_as_map_servers_yaml_cpp_reads_them(tmp_path):
+    # PyYAML (YAML 1.1) takes 5e-2 (no dot) for a string; yaml-cpp reads it, and a quoted
+    # number, as a number.
+    Image.fromarray(np.zeros((2, 2), dtype=np.uint8), 'L').save(tmp_path / 'a.pgm')
+    (tmp_path / 'a.yaml').write_text(
+        "image: a.pgm\nresolution: 5e-2\norigin: [1e1, '2', -5e-1]\nfree_thresh: '0.2'\n")
+    grid = load_map(tmp_path / 'a.yaml')
+    assert grid.resolution == 0.05 and grid.origin == (10.0, 2.0, -0.5)
+
+
 def assert_refused(yaml_path, *words):
     with pytest.raises(MapError) as caught:
         load_map(yaml_path)
@@ -276,6 +286,8 @@ def test_refuses_missing_or_unreadable_yaml(tmp_path):
     ('resolution', 'fine', ["'resolution'", 'number']),
     ('resolution', '.nan', ["'resolution'"]),
     ('resolution', 'true', ["'resolution'"]),
+    ('resolution', "'inf'", ["'resolution'"]),
+    ('resolution', '1e400', ["'resolution'"]),
     ('origin', None, ["missing 'origin'"]),
     ('origin', '[0, 0]', ["'origin'", '3 numbers']),
     ('origin', '[0, 0, 0, 0]', ["'origin'", '3 numbers']),

@@ -153,7 +153,7 @@ def load_map(yaml_path):
                        % (where, doc['resolution']))
     origin = doc['origin']
     if (not isinstance(origin, (list, tuple)) or len(origin) != 3
-            or not all(_is_number(value) for value in origin)):
+            or None in map(_as_number, origin)):
         raise MapError("%s: 'origin' must be 3 numbers [x, y, yaw], not %r" % (where, origin))
     negate = doc.get('negate', 0)
     if negate not in (0, 1) or not isinstance(negate, (int, bool)):
@@ -181,19 +181,33 @@ def load_map(yaml_path):
                        % (where, image_path, error)) from None
     cells = _cells(grey, alpha, mode, bool(negate), free, occupied)
     # Image row 0 is the top; map_server stores it last: data[width * (height - y - 1) + x].
-    return GridMap(resolution, tuple(float(value) for value in origin), cells[::-1])
+    return GridMap(resolution, tuple(map(_as_number, origin)), cells[::-1])
 
 
-def _is_number(value):
-    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+def _as_number(value):
+    """
+    Return value as a finite float, or None.
+
+    As map_server's yaml-cpp reads a number: YAML 1.1 (PyYAML) takes 5e-2 for a string, and a
+    quoted '0.05' is one; yaml-cpp reads both as numbers.
+    """
+    if isinstance(value, str):
+        try:
+            value = float(value)
+        except ValueError:
+            return None
+    if isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value):
+        return float(value)
+    return None
 
 
 def _number(doc, key, where, default=None):
     if key not in doc:
         return default
-    if not _is_number(doc[key]):
+    number = _as_number(doc[key])
+    if number is None:
         raise MapError("%s: '%s' must be a number, not %r" % (where, key, doc[key]))
-    return float(doc[key])
+    return number
 
 
 def _quanta(img):
