@@ -378,3 +378,17 @@ def test_a_reset_puts_every_robot_back_though_one_stands_on_anothers_start(graph
                                                                    (1.0, 0.3, 0.0)]
     err = capfd.readouterr().err
     assert 'Reset every robot to its initial pose' in err and 'Refusing' not in err
+
+
+def test_a_scan_rate_between_whole_steps_is_the_nearest_and_said(graph, capfd):
+    graph.sim(map_file=ROOM, initial_x=0.5, initial_y=0.3, scan_rate_hz=30.0)
+    graph.step_for(0.2)
+    first = graph.scan().header.stamp
+    graph.step(2)
+    second = graph.scan().header.stamp
+    assert (second.sec, second.nanosec - first.nanosec) == (first.sec, 40_000_000)
+    assert graph.scan().scan_time == pytest.approx(0.04, abs=1e-9)  # a float32
+    err = capfd.readouterr().err
+    assert ('scan_rate_hz 30 is not rate_hz 50 over a whole number of steps: a scan every 2 '
+            'step(s), at 25 Hz') in err
+    assert 'scans at 25 Hz' in err

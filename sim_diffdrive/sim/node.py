@@ -192,7 +192,8 @@ class UnicycleSim(Node):
                if p.publish_clock else '')
             + (f'; in the map {p.map_file} ({self.surroundings.grid.width} x '
                f'{self.surroundings.grid.height} cells of {self.surroundings.grid.resolution:g} '
-               f'm), scans at {p.scan_rate_hz:g} Hz' if self.surroundings else ''))
+               f'm), scans at {self.surroundings.scan_rate_hz:g} Hz' if self.surroundings
+               else ''))
 
     def _initial_poses(self, count):
         p = self.params

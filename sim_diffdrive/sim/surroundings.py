@@ -21,6 +21,7 @@ With ``map_file`` the robots drive in a map_server map, as in Nav2's loopback si
 """
 
 import array
+import math
 
 from geometry_msgs.msg import TransformStamped
 from nav_msgs.msg import OccupancyGrid
@@ -54,8 +55,9 @@ WORLD_PARAMETERS = (
          "each robot's odometry frame goes on /tf; initialpose may be given in it."),
     Spec('robot_radius', 0.105, "Radius of a robot's disc [m] (with map_file): it stops where "
          'the disc touches a wall or another robot.', low=0.0, high=100.0, low_open=True),
-    Spec('scan_rate_hz', 10.0, "LaserScan rate on each robot's scan [Hz] (with map_file); "
-         '0 = no scan.', low=0.0, high=1000.0),
+    Spec('scan_rate_hz', 10.0, "LaserScan rate on each robot's scan [Hz] (with map_file): "
+         'the nearest of rate_hz over a whole number of steps; 0 = no scan.', low=0.0,
+         high=1000.0),
     Spec('scan_beams', 360, 'Beams per scan, over the full turn counter-clockwise from -pi.',
          low=1, high=100000),
     Spec('scan_range_min', 0.12, 'Nearest range the scanner reports [m]; closer is -inf.',
@@ -100,6 +102,13 @@ class Surroundings:
         self.scan_pubs = [node.create_publisher(LaserScan, f'{name}/scan' if name else 'scan',
                                                 SCAN_QOS) for name in names]
         self._scan_every = max(1, round(p.rate_hz / p.scan_rate_hz)) if p.scan_rate_hz > 0 else 0
+        # Scans go out with a step's odometry: at rate_hz over a whole number of steps.
+        self.scan_rate_hz = p.rate_hz / self._scan_every if self._scan_every else 0.0
+        if self._scan_every and not math.isclose(self.scan_rate_hz, p.scan_rate_hz):
+            node.get_logger().warning(
+                f'scan_rate_hz {p.scan_rate_hz:g} is not rate_hz {p.rate_hz:g} over a whole '
+                f'number of steps: a scan every {self._scan_every} step(s), at '
+                f'{self.scan_rate_hz:g} Hz')
         # Every LaserScan's fields but its header and ranges (scan_time: between two scans [s]).
         self._scan_fields = {name: getattr(self.scanner, name) for name in (
             'angle_min', 'angle_max', 'angle_increment', 'range_min', 'range_max')}
