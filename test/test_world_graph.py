@@ -316,7 +316,8 @@ def test_a_controller_in_another_process_reads_the_scan_in_lockstep_exactly(grap
     assert graph.spin_until(lambda: twist_of(graph.odom()) == (0.0, 0.0), timeout=60.0), (
         sim.output())
     x, y, yaw = graph.pose()
-    assert x == pytest.approx(0.5 + 34 * 0.03, abs=1e-9) and (y, yaw) == (0.3, 0.0)
+    assert x == pytest.approx(0.5 + 34 * 0.03, abs=1e-9) and (y, yaw) == (0.3, 0.0), (
+        sim.output())
     lockstep.leave()
     sim.send(signal.SIGINT)
     assert sim.wait(10.0) == 0
