@@ -109,7 +109,7 @@ def test_odom_motion_without_odometry_gives_up_and_never_moves(graph, run_main):
 
 
 def test_typed_answers_bad_ones_explained_and_asked_again_rotate_the_robot(
-        graph, robot, procs):
+        graph, robot, procs, simulator):
     probe = robot('typed')
     motion = procs('rotate_robot', 'rotate_robot', *rotate_args('typed'), stdin=subprocess.PIPE)
     motion.write('fast\n-5\nnan\n60\n\n1e9\n45\nmaybe\ny\n')
@@ -123,11 +123,13 @@ def test_typed_answers_bad_ones_explained_and_asked_again_rotate_the_robot(
     assert 'answer y or n' in output
     assert 'Done' in output
     _, _, yaw = settle(graph, probe)
-    assert angle_error(yaw, math.radians(-45.0)) < ONE_STEP_AT_60
+    # (A machine too busy for the lockstep_timeout shows in both logs: going on without it.)
+    assert angle_error(yaw, math.radians(-45.0)) < ONE_STEP_AT_60, (
+        output + simulator.describe())
     assert probe.odom.twist.twist.angular.z == 0.0
 
 
-def test_answers_from_a_params_file_skip_the_questions(graph, robot, procs):
+def test_answers_from_a_params_file_skip_the_questions(graph, robot, procs, simulator):
     # The shipped params file as a user runs it (test_params_files.py checks the file against
     # the node): it gives rotate_robot's three answers, so nothing is asked.  The file is for
     # the node /rotate_robot: its topics, not its name, go to the module's robot; mode odom
@@ -143,4 +145,5 @@ def test_answers_from_a_params_file_skip_the_questions(graph, robot, procs):
     assert 'Rotating 90 deg clockwise at 60 deg/s (odom mode)' in output, output
     assert 'Done' in output, output
     _, _, yaw = settle(graph, probe)
-    assert angle_error(yaw, math.radians(-90.0)) < ONE_STEP_AT_60
+    assert angle_error(yaw, math.radians(-90.0)) < ONE_STEP_AT_60, (
+        output + simulator.describe())
