@@ -25,8 +25,10 @@ dispatch, under both executors; a ``publish`` set on a publisher shadows the met
 ``node.subscriptions``, and its callback has set the clock when it returns; when a sim-time
 timer's callback runs, rcl has moved its schedule on; and the EventsExecutor runs a sim-time
 timer's event more than once for one due time, each run moving rcl's schedule a whole period
-on (_SimTimeCalls).  test/test_rclpy_behaviour.py pins each, so an rclpy update that changes
-one fails there.  No rcl schedule is moved here: no ``reset()``, no period written.
+on (_SimTimeCalls); a subscription's ``get_publisher_count()`` counts the publishers matched
+with it, of a compatible QoS only.  test/test_rclpy_behaviour.py pins each, so an rclpy
+update that changes one fails there.  No rcl schedule is moved here: no ``reset()``, no
+period written.
 """
 
 import struct
