@@ -450,32 +450,3 @@ def test_answered_says_whether_only_counts_are_left_to_wait_for(joined):
     assert ledger.waiting_for(owner.now) == [('sim', CMD, 1)]
     owner.hear_command()
     assert ledger.answered(owner.now) and ledger.waiting_for(owner.now) == []
-
-
-def test_a_first_message_on_a_topic_heard_of_nothing_yet_is_waited_for():
-    # A controller subscribed to scan and map (-1: nothing heard, a publisher matched) joins
-    # after the owner's last scan and its one map: neither holds it back, but the next scan,
-    # sent after it joined, does: its reply to the first scan it hears lands on that step.
-    SCAN, MAP = '/scan', '/map'
-    ledger = StepLedger('sim')
-
-    def owner(now, scan_ns):
-        ledger.receive(Answer('sim', '/unicycle_sim', now, {SCAN: 1, MAP: 1}, {CMD: 0},
-                              sent_stamp={SCAN: scan_ns, MAP: 0}), now)
-
-    def controller(now, cmds, scan_ns):
-        return Answer('c', '/controller', now, {CMD: cmds}, {SCAN: 0, MAP: 0},
-                      heard_stamp={SCAN: scan_ns, MAP: -1})
-    owner(20 * MS, 20 * MS)
-    owner(40 * MS, 20 * MS)
-    ledger.receive(controller(40 * MS, 0, -1), 40 * MS)
-    assert ledger.waiting_for(40 * MS) == [] and 'c' in ledger.synced()
-    owner(120 * MS, 120 * MS)  # a scan at 120 ms; the controller answered 120 before it
-    ledger.receive(controller(120 * MS, 0, -1), 120 * MS)
-    reasons = ledger.waiting_for(120 * MS)
-    assert reasons == [('c', SCAN, 0)]
-    assert ledger.describe(reasons[0], 120 * MS) == (
-        '/controller has not heard the latest message on /scan (stamped 0.120 s by '
-        '/unicycle_sim; it heard none yet)')
-    ledger.receive(controller(120 * MS, 1, 120 * MS), 120 * MS)  # heard it, replied
-    assert ledger.waiting_for(120 * MS) == [('sim', CMD, 1)]  # the simulator owes it

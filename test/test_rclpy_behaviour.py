@@ -30,8 +30,6 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.qos import DurabilityPolicy
-from rclpy.qos import QoSProfile
 from rclpy.time import Time
 from rosgraph_msgs.msg import Clock as ClockMsg
 from std_msgs.msg import String
@@ -192,22 +190,4 @@ def test_the_events_executor_duplicates_a_sim_time_timer_event(ros_context):
         assert timer.time_until_next_call() == 2 * _NS - 1  # due at 3 s: two periods on
     finally:
         executor.shutdown()
-        node.destroy_node()
-
-
-def test_a_subscriptions_publisher_count_is_of_matched_publishers_of_a_compatible_qos(
-        ros_context):
-    # The counter says a stamped topic's -1 (heard nothing yet) once this is above 0.
-    node = Node('counted', context=ros_context)
-    try:
-        volatile = node.create_subscription(String, 'pinned', lambda msg: None, 10)
-        latched = node.create_subscription(String, 'pinned', lambda msg: None, QoSProfile(
-            depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL))
-        assert volatile.get_publisher_count() == latched.get_publisher_count() == 0
-        node.create_publisher(String, 'pinned', 10)  # volatile: no match for the latched one
-        deadline = time.monotonic() + 10.0
-        while volatile.get_publisher_count() == 0 and time.monotonic() < deadline:
-            time.sleep(0.01)
-        assert (volatile.get_publisher_count(), latched.get_publisher_count()) == (1, 0)
-    finally:
         node.destroy_node()

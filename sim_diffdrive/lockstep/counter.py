@@ -25,16 +25,13 @@ dispatch, under both executors; a ``publish`` set on a publisher shadows the met
 ``node.subscriptions``, and its callback has set the clock when it returns; when a sim-time
 timer's callback runs, rcl has moved its schedule on; and the EventsExecutor runs a sim-time
 timer's event more than once for one due time, each run moving rcl's schedule a whole period
-on (_SimTimeCalls); a subscription's ``get_publisher_count()`` counts the publishers matched
-with it, of a compatible QoS only.  test/test_rclpy_behaviour.py pins each, so an rclpy
-update that changes one fails there.  No rcl schedule is moved here: no ``reset()``, no
-period written.
+on (_SimTimeCalls).  test/test_rclpy_behaviour.py pins each, so an rclpy update that changes
+one fails there.  No rcl schedule is moved here: no ``reset()``, no period written.
 """
 
 import struct
 
 from rclpy.clock import ClockType
-from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.serialization import deserialize_message
 from rosgraph_msgs.msg import Clock as ClockMsg
 from sim_diffdrive.cdr import header_stamp_ns
@@ -79,11 +76,9 @@ class MessageCounter:
         self.sent = {}
         self.heard = {}
         # The highest header stamp [ns] published / handled per topic: a foreign node's stale
-        # or zero stamp never lowers what was heard.  -1: nothing heard yet on a subscription
-        # that has a publisher (so the owner can wait for its first message too).
+        # or zero stamp never lowers what was heard.
         self.sent_stamp = {}
         self.heard_stamp = {}
-        self._unheard = {}  # topic -> stamped subscription: not heard, no publisher seen yet
         self.clock_ns = None
         self.clock_messages = 0  # /clock messages handled, repeats included
         # The last step the clock took [ns] (None until it has stepped), and, while the
@@ -104,10 +99,8 @@ class MessageCounter:
                     sub.callback = self._clock_callback(sub.callback)
                 elif topic not in self._ignored:
                     self.heard.setdefault(topic, 0)
-                    stamp_ns = _stamp_reader(sub.msg_type)
-                    if stamp_ns is not None and topic not in self.heard_stamp:
-                        self._unheard[topic] = sub
-                    sub.callback = self._heard_callback(sub.callback, topic, stamp_ns)
+                    sub.callback = self._heard_callback(sub.callback, topic,
+                                                        _stamp_reader(sub.msg_type))
                 sub._lockstep_counter = self
         for timer in node.timers if self._timers else ():
             if not getattr(timer, '_lockstep_counter', None):
@@ -124,27 +117,9 @@ class MessageCounter:
     def _after(self):
         if not self._fixed:
             self.wrap_new()
-        if self._unheard:
-            self._declare_unheard()
         for listener in self.listeners:
             listener()
         self.heard_offset_ns = None
-
-    def _declare_unheard(self):
-        """
-        Say -1 for a stamped topic not heard yet once its subscription has a publisher.
-
-        Matched, the subscription gets what is published from then on: the owner may wait for
-        it.  Without a publisher (none yet, or none of a compatible QoS) it says nothing.
-        """
-        for topic, sub in list(self._unheard.items()):
-            try:
-                matched = topic in self.heard_stamp or sub.get_publisher_count() > 0
-            except _rclpy.InvalidHandle:  # destroyed since
-                matched = True
-            if matched:
-                self.heard_stamp.setdefault(topic, -1)
-                del self._unheard[topic]
 
     def _clock_callback(self, callback):
         def counted(msg):

@@ -289,11 +289,8 @@ class StepLedger:
                 continue
             answer = member.answer
             floor = member.stamp_floor
-            # Nothing heard yet (-1): waited for from a message sent after it joined (its
-            # subscription was matched by then, as discovery announces it before its answers).
             behind = [(pid, topic, 0) for topic, stamp in answer.heard_stamp.items()
-                      if max(stamp, floor.get(topic, stamp)) < stamps.get(topic, stamp)
-                      and (stamp >= 0 or stamps[topic] > member.joined_ns)]
+                      if max(stamp, floor.get(topic, stamp)) < stamps.get(topic, stamp)]
             if member.synced:
                 reasons += behind
             elif not behind and answer.step_ns >= now_ns:
@@ -405,8 +402,8 @@ class StepLedger:
             senders = sorted(m.answer.node for m in self.members.values()
                              if m.answer.sent_stamp.get(topic) == latest)
             return (f'{member.answer.node} has not heard the latest message on {topic} '
-                    f'(stamped {latest / _NS:.3f} s by {", ".join(senders)}; it heard '
-                    + (f'up to {heard / _NS:.3f} s)' if heard >= 0 else 'none yet)'))
+                    f'(stamped {latest / _NS:.3f} s by {", ".join(senders)}; it heard up to '
+                    f'{heard / _NS:.3f} s)')
         return f'{member.answer.node} has not handled {due} message(s) on {topic}'
 
     def _latest_stamps(self):
