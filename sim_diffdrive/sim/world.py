@@ -302,8 +302,8 @@ class World:
     def _due(self, now_ns):
         """Take the held commands due by now_ns out: (stamp, robot, linear, angular) in order."""
         integrated = self.integrated_ns
-        if NOT_YET in integrated or now_ns < integrated.max():
-            return []  # a first step, or a clock gone back: _advance's way
+        if not self.has_early.any() or NOT_YET in integrated or now_ns < integrated.max():
+            return []  # none held; or a first step, a clock gone back: _advance's way
         due = []
         for i, early in enumerate(self.early):
             while early and early[0][0] <= now_ns:
