@@ -17,7 +17,9 @@
 import math
 
 from geometry_msgs.msg import TwistStamped
+from nav_msgs.msg import Odometry
 import pytest
+from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile
@@ -114,6 +116,23 @@ def test_a_probes_latest_twist_stamp_and_motion_read_from_bytes_equal_the_messag
             assert probe.stamp_s == stamp_s(odom) and stamp_s(odom) not in seen
             assert probe.moving == is_moving(odom) == ((v, w) != (0.0, 0.0))
             seen.add(stamp_s(odom))
+
+
+def test_a_probe_keeps_its_depth_of_odometry_while_its_process_does_not_spin(graph):
+    # A process busy elsewhere (a benchmark on a loaded machine) takes its odometry later:
+    # a probe keeps the newest `depth` of it, 200 unless told.
+    node = graph.add(Node('flood', context=graph.context))
+    flood = node.create_publisher(Odometry, 'odom', 1000)
+    short, deep = graph.probe('short', listen_only=True), graph.probe('deep', depth=500)
+    graph.wait_for_discovery()
+    for i in range(300):
+        odom = Odometry()
+        odom.header.stamp.sec = i
+        flood.publish(odom)
+    assert flood.wait_for_all_acked(Duration(seconds=10.0))  # in both probes' queues
+    assert graph.spin_until(lambda: len(deep.odoms) == 300 and len(short.odoms) >= 200)
+    assert [deep.odoms.stamp_ns(i) // NS for i in range(300)] == list(range(300))
+    assert [short.odoms.stamp_ns(i) // NS for i in range(200)] == list(range(100, 300))
 
 
 # -- cmd_vel timeout ---------------------------------------------------------------------------

@@ -110,7 +110,7 @@ class Probe(Node):
     """Record odometry and send Twist commands, or play a script of them on sim-time ticks."""
 
     def __init__(self, name='probe', odom_topic='odom', cmd_topic='cmd_vel', listen_only=False,
-                 record_commands=False, **kwargs):
+                 record_commands=False, depth=200, **kwargs):
         # Without the parameter and type description services (seven, each discovered by every
         # process) a probe is far cheaper to make.
         kwargs.setdefault('start_parameter_services', False)
@@ -121,7 +121,9 @@ class Probe(Node):
         self.odoms = Received(Odometry)
         self.odom_walls = []  # the monotonic wall time each odometry message arrived
         self.commands = []  # with record_commands: (monotonic, time.time(), Twist) heard
-        self.create_subscription(Odometry, odom_topic, self._on_odom, 200, raw=True)
+        # depth: the odometry kept while this process is busy (a simulator that runs free
+        # publishes thousands a second; older ones go).
+        self.create_subscription(Odometry, odom_topic, self._on_odom, depth, raw=True)
         # A listener only: a second publisher on cmd_vel would make the simulator warn.
         self.cmd_pub = None if listen_only else self.create_publisher(Twist, cmd_topic, 10)
         if record_commands:

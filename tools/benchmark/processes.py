@@ -123,8 +123,10 @@ def watch_motion(graph, start, stop, motion, rtf, **sim_params):
     """
     _, executable, params, sim_seconds, turn_deg = MOTIONS[motion]
     # One observer per motion in the same graph: without /rosout, rcl does not warn about the
-    # name used again.
-    probe = graph.probe('motion_observer', listen_only=True, enable_rosout=False)
+    # name used again.  It keeps 4 s of odometry at the simulator's free pace: descheduled
+    # on a busy machine, it kept 200, and the simulator running free again after the motion
+    # left pushed out every moving one unread.
+    probe = graph.probe('motion_observer', listen_only=True, enable_rosout=False, depth=10_000)
     processes, code = [], 'no odometry'
     try:
         processes.append(start('unicycle_sim', publish_clock=True, real_time_factor=rtf,
