@@ -450,3 +450,43 @@ def test_answered_says_whether_only_counts_are_left_to_wait_for(joined):
     assert ledger.waiting_for(owner.now) == [('sim', CMD, 1)]
     owner.hear_command()
     assert ledger.answered(owner.now) and ledger.waiting_for(owner.now) == []
+
+
+def test_a_joiner_is_counted_once_it_has_heard_each_stamped_topic_members_send():
+    # A controller listens to scans (every fifth step) and to a map sent once, long before:
+    # -1, nothing heard yet.  Counted only once it has heard a scan, so that every later
+    # scan, the first it replies to included, is waited for; its -1 for the map goes from
+    # its answer after a while (counter.py) and then it is counted.
+    SCAN, MAP = '/scan', '/map'
+    ledger = StepLedger('sim')
+
+    def owner(now, scan_ns):
+        ledger.receive(Answer('sim', '/unicycle_sim', now, {SCAN: 1, MAP: 1}, {CMD: 0},
+                              sent_stamp={SCAN: scan_ns, MAP: 0}), now)
+
+    def controller(now, scan_ns, map_ns=-1):
+        return Answer('c', '/controller', now, {CMD: 0}, {SCAN: 0, MAP: 0},
+                      heard_stamp={SCAN: scan_ns, MAP: map_ns})
+    owner(20 * MS, 20 * MS)
+    for now in (20 * MS, 40 * MS):  # it never holds the clock while it joins
+        ledger.receive(controller(now, -1, 0), now)
+        assert ledger.waiting_for(now) == [] and 'c' not in ledger.synced()
+        owner(now + 20 * MS, 20 * MS)
+    owner(100 * MS, 100 * MS)
+    ledger.receive(controller(100 * MS, 100 * MS, 0), 100 * MS)  # heard a scan
+    assert ledger.waiting_for(100 * MS) == [] and 'c' in ledger.synced()
+    owner(200 * MS, 200 * MS)  # counted: the next scan is waited for
+    ledger.receive(controller(200 * MS, 100 * MS, 0), 200 * MS)
+    assert ledger.waiting_for(200 * MS) == [('c', SCAN, 0)]
+    # Counted, a -1 (a subscription made since) holds nobody: it may never match.
+    ledger.receive(Answer('c', '/controller', 200 * MS, {CMD: 0}, {SCAN: 0, MAP: 0, '/x': 0},
+                          heard_stamp={SCAN: 200 * MS, MAP: 0, '/x': -1}), 200 * MS)
+    ledger.receive(Answer('sim', '/unicycle_sim', 200 * MS, {SCAN: 1, MAP: 1, '/x': 1},
+                          {CMD: 0}, sent_stamp={SCAN: 200 * MS, MAP: 0, '/x': 0}), 200 * MS)
+    assert ledger.waiting_for(200 * MS) == []
+    # Another joins, listening to the map only: its -1 holds its count until it goes.
+    ledger.receive(Answer('d', '/d', 200 * MS, heard={MAP: 0}, heard_stamp={MAP: -1}),
+                   200 * MS)
+    assert ledger.waiting_for(200 * MS) == [] and 'd' not in ledger.synced()
+    ledger.receive(Answer('d', '/d', 200 * MS, heard={MAP: 0}), 200 * MS)
+    assert ledger.waiting_for(200 * MS) == [] and 'd' in ledger.synced()

@@ -25,6 +25,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.time import Time
 from rosgraph_msgs.msg import Clock as ClockMsg
+from sim_diffdrive.lockstep import counter as counter_module
 from sim_diffdrive.lockstep.handshake import Answer
 from sim_diffdrive.lockstep.handshake import Roster
 from sim_diffdrive.lockstep.participant import ANSWER_QOS
@@ -226,14 +227,24 @@ def test_a_roster_that_says_it_was_dropped_is_noted_once_per_drop(node):
     assert lockstep.dropped_ns == 4_000_000_000 and len(warned) == 2
 
 
-def test_a_stale_or_zero_stamp_never_lowers_what_was_heard(node):
+def test_nothing_heard_is_minus_one_for_a_while_and_a_stale_stamp_never_lowers(node,
+                                                                               monkeypatch):
+    # -1: the owner counts a joiner once it has heard each (test_handshake.py), and after
+    # UNHEARD_S it is said no more (a message that never comes holds no join up).
     sub = node.create_subscription(Odometry, 'odom', lambda msg: None, 10)
+    node.create_subscription(Odometry, 'never', lambda msg: None, 10)
+    node.create_subscription(Twist, 'unstamped', lambda msg: None, 10)
     counter = take_part(node).counter
+    assert counter.heard_stamp == {'/odom': -1, '/never': -1}
     for seconds in (3, 0, 2):
         odom = Odometry()
         odom.header.stamp = Time(seconds=seconds).to_msg()
         sub.callback(odom)
-    assert counter.heard == {'/odom': 3} and counter.heard_stamp == {'/odom': 3_000_000_000}
+    assert counter.heard['/odom'] == 3
+    assert counter.heard_stamp == {'/odom': 3_000_000_000, '/never': -1}
+    monkeypatch.setattr(counter_module, 'UNHEARD_S', 0.0)
+    sub.callback(odom)
+    assert counter.heard_stamp == {'/odom': 3_000_000_000}
 
 
 class Listener:
@@ -464,8 +475,8 @@ def test_a_process_answers_once_a_step_for_all_its_nodes(ros_context, node):
 
 
 def test_a_node_that_heard_no_stamp_leaves_the_others_waited_for(ros_context, node):
-    # As separate participants would be: a node that has heard nothing stamped on a topic says
-    # nothing of it, and the stamps of those that have still count.
+    # A node that has heard nothing stamped on a topic (-1) does not lower what the others
+    # that have say: their stamps still count.
     other = Node('other', context=ros_context,
                  parameter_overrides=[Parameter('use_sim_time', value=True)])
     try:

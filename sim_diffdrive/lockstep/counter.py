@@ -30,6 +30,7 @@ one fails there.  No rcl schedule is moved here: no ``reset()``, no period writt
 """
 
 import struct
+import time
 
 from rclpy.clock import ClockType
 from rclpy.serialization import deserialize_message
@@ -39,6 +40,9 @@ from sim_diffdrive.cdr import UnsupportedEncoding
 from sim_diffdrive.lockstep.handshake import ignored_topics
 
 _NS = 1_000_000_000
+# How long a participant's stamped subscription says "nothing heard yet" (-1) [s, wall]: a
+# joiner is counted once it has heard each (see StepLedger.waiting_for), or after this.
+UNHEARD_S = 2.0
 
 
 class MessageCounter:
@@ -49,34 +53,45 @@ class MessageCounter:
     callback.  With ``timers`` false the node's timers are left alone (a clock owner's timers
     are its own).  Entities the node creates later are wrapped after its next callback, unless
     ``fixed`` says it creates none (a simulator with hundreds of robots need not look each
-    time; whoever adds entities to it calls ``wrap_new``).
+    time; whoever adds entities to it calls ``wrap_new``).  With ``unheard`` (a participant's)
+    a stamped topic it subscribes to and has heard nothing on is in ``heard_stamp`` as -1, for
+    up to UNHEARD_S: the clock owner counts a joiner once it has heard each.
     """
 
     @classmethod
-    def of(cls, node, clock_topic, timers=False, fixed=False):
+    def of(cls, node, clock_topic, timers=False, fixed=False, unheard=False):
         """
         Return node's counter, made on first use; ``timers`` true also counts its timers.
 
-        The first caller's clock_topic and ``fixed`` hold; ``timers`` once true stays true.
+        The first caller's clock_topic and ``fixed`` hold; ``timers`` and ``unheard`` once true
+        stay true.
         """
         counter = getattr(node, '_message_counter', None)
         if counter is None:
-            counter = node._message_counter = cls(node, clock_topic, timers, fixed)
-        elif timers and not counter._timers:
-            counter._timers = True
-            counter.wrap_new()
+            counter = node._message_counter = cls(node, clock_topic, timers, fixed, unheard)
+        else:
+            if timers and not counter._timers:
+                counter._timers = True
+                counter.wrap_new()
+            if unheard and not counter._unheard:
+                counter._unheard = True
+                for topic in counter._stamped:
+                    counter._declare_unheard(topic)
         return counter
 
-    def __init__(self, node, clock_topic, timers, fixed):
+    def __init__(self, node, clock_topic, timers, fixed, unheard=False):
         self.node = node
         self._timers = timers
         self._fixed = fixed
+        self._unheard = unheard
+        self._stamped = set()  # the stamped topics it subscribes to
+        self._unheard_since = {}  # topic -> when it was declared unheard [s, monotonic]
         self._ignored = ignored_topics(clock_topic)
         self.listeners = []
         self.sent = {}
         self.heard = {}
         # The highest header stamp [ns] published / handled per topic: a foreign node's stale
-        # or zero stamp never lowers what was heard.
+        # or zero stamp never lowers what was heard (-1: nothing heard yet, see ``unheard``).
         self.sent_stamp = {}
         self.heard_stamp = {}
         self.clock_ns = None
@@ -99,8 +114,12 @@ class MessageCounter:
                     sub.callback = self._clock_callback(sub.callback)
                 elif topic not in self._ignored:
                     self.heard.setdefault(topic, 0)
-                    sub.callback = self._heard_callback(sub.callback, topic,
-                                                        _stamp_reader(sub.msg_type))
+                    stamp_ns = _stamp_reader(sub.msg_type)
+                    if stamp_ns is not None:
+                        self._stamped.add(topic)
+                        if self._unheard:
+                            self._declare_unheard(topic)
+                    sub.callback = self._heard_callback(sub.callback, topic, stamp_ns)
                 sub._lockstep_counter = self
         for timer in node.timers if self._timers else ():
             if not getattr(timer, '_lockstep_counter', None):
@@ -114,9 +133,25 @@ class MessageCounter:
                                                         _stamp_reader(pub.msg_type))
                 pub._lockstep_counter = self
 
+    def _declare_unheard(self, topic):
+        if topic not in self.heard_stamp:
+            self.heard_stamp[topic] = -1
+            self._unheard_since[topic] = time.monotonic()
+
+    def _expire_unheard(self):
+        """Stop saying -1 for a topic heard since, or unheard for UNHEARD_S (it may never come)."""
+        now = time.monotonic()
+        for topic, since in list(self._unheard_since.items()):
+            if self.heard_stamp.get(topic, 0) >= 0:
+                del self._unheard_since[topic]
+            elif now - since > UNHEARD_S:
+                del self.heard_stamp[topic], self._unheard_since[topic]
+
     def _after(self):
         if not self._fixed:
             self.wrap_new()
+        if self._unheard_since:
+            self._expire_unheard()
         for listener in self.listeners:
             listener()
         self.heard_offset_ns = None

@@ -270,9 +270,12 @@ class StepLedger:
         (participant, topic, n) for n unstamped messages it has not handled.  A joining member
         holds the clock for its answer to each step after the one it joined in, never for a
         stamped topic: it is counted from the first otherwise settled step at which it has
-        caught up on every stamped topic it hears.  A message written while its subscription
-        was being matched may never reach it (a DDS volatile reader gets what is written after
-        both sides matched), and no repair brings it; the next step's does, in writer order.
+        caught up on every stamped topic it hears, members' topics it has heard nothing on yet
+        (-1, counter.py) included, so that once counted it is waited for on all of them.  A
+        message written while its subscription was being matched may never reach it (a DDS
+        volatile reader gets what is written after both sides matched), and no repair brings
+        it; the next step's does, in writer order.  A counted member's -1 (a subscription made
+        since) is not waited for: it may never match.
         """
         # Most news is one more answer while others are missing: say so without the counts
         # (which cost time in proportion to members x topics).
@@ -290,7 +293,8 @@ class StepLedger:
             answer = member.answer
             floor = member.stamp_floor
             behind = [(pid, topic, 0) for topic, stamp in answer.heard_stamp.items()
-                      if max(stamp, floor.get(topic, stamp)) < stamps.get(topic, stamp)]
+                      if max(stamp, floor.get(topic, stamp)) < stamps.get(topic, stamp)
+                      and (stamp >= 0 or not member.synced)]
             if member.synced:
                 reasons += behind
             elif not behind and answer.step_ns >= now_ns:

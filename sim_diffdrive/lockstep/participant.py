@@ -102,7 +102,7 @@ class Participant:
         return Member(self, node)
 
     def _answer_for(self, node):
-        counter = MessageCounter.of(node, self._clock_topic, timers=True)
+        counter = MessageCounter.of(node, self._clock_topic, timers=True, unheard=True)
         self._nodes[node] = _NodeState(counter)
         self._active += 1
         counter.listeners.append(lambda: self._answer_if_settled(node))
@@ -189,9 +189,12 @@ class Participant:
             step_ns = max(step_ns, c.clock_ns or 0)
             for topic, count in c.heard.items():
                 heard[topic] = min(heard.get(topic, count), count)
-            # A node that has heard no stamp on a topic says none, as it would on its own.
+            # A node that has heard nothing on a topic (-1) does not lower what those that
+            # have heard say: -1 only while none has.
             for topic, stamp in c.heard_stamp.items():
-                heard_stamp[topic] = min(heard_stamp.get(topic, stamp), stamp)
+                known = heard_stamp.get(topic, -1)
+                heard_stamp[topic] = stamp if known < 0 else min(known, stamp) if stamp >= 0 \
+                    else known
         return step_ns, (sent, heard, sent_stamp, heard_stamp)
 
     def leave(self, ack_timeout=0.5):
