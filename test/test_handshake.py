@@ -453,40 +453,47 @@ def test_answered_says_whether_only_counts_are_left_to_wait_for(joined):
 
 
 def test_a_joiner_is_counted_once_it_has_heard_each_stamped_topic_members_send():
-    # A controller listens to scans (every fifth step) and to a map sent once, long before:
-    # -1, nothing heard yet.  Counted only once it has heard a scan, so that every later
-    # scan, the first it replies to included, is waited for; its -1 for the map goes from
-    # its answer after a while (counter.py) and then it is counted.
-    SCAN, MAP = '/scan', '/map'
+    # A controller hears scans (every fifth step) and a map sent once, long before (-1:
+    # nothing heard yet).  Counted only once it has heard a scan, so that every later scan,
+    # the first it replies to included, is waited for; its -1 for the map goes from its
+    # answer after UNHEARD_S (counter.py); a -1 once counted holds nobody (it may never match).
     ledger = StepLedger('sim')
 
     def owner(now, scan_ns):
-        ledger.receive(Answer('sim', '/unicycle_sim', now, {SCAN: 1, MAP: 1}, {CMD: 0},
-                              sent_stamp={SCAN: scan_ns, MAP: 0}), now)
+        ledger.receive(Answer('sim', '/sim', now, sent_stamp={
+            '/scan': scan_ns, '/map': 0, '/x': 0}), now)
 
-    def controller(now, scan_ns, map_ns=-1):
-        return Answer('c', '/controller', now, {CMD: 0}, {SCAN: 0, MAP: 0},
-                      heard_stamp={SCAN: scan_ns, MAP: map_ns})
+    def controller(now, **heard):
+        ledger.receive(Answer('c', '/c', now, heard_stamp={
+            '/' + topic: stamp for topic, stamp in heard.items()}), now)
+        return ledger.waiting_for(now), 'c' in ledger.synced()
     owner(20 * MS, 20 * MS)
     for now in (20 * MS, 40 * MS):  # it never holds the clock while it joins
-        ledger.receive(controller(now, -1, 0), now)
-        assert ledger.waiting_for(now) == [] and 'c' not in ledger.synced()
+        assert controller(now, scan=-1, map=-1) == ([], False)
         owner(now + 20 * MS, 20 * MS)
     owner(100 * MS, 100 * MS)
-    ledger.receive(controller(100 * MS, 100 * MS, 0), 100 * MS)  # heard a scan
-    assert ledger.waiting_for(100 * MS) == [] and 'c' in ledger.synced()
+    assert controller(100 * MS, scan=100 * MS, map=-1) == ([], False)
+    assert controller(100 * MS, scan=100 * MS) == ([], True)  # the map's -1 has gone
     owner(200 * MS, 200 * MS)  # counted: the next scan is waited for
-    ledger.receive(controller(200 * MS, 100 * MS, 0), 200 * MS)
-    assert ledger.waiting_for(200 * MS) == [('c', SCAN, 0)]
-    # Counted, a -1 (a subscription made since) holds nobody: it may never match.
-    ledger.receive(Answer('c', '/controller', 200 * MS, {CMD: 0}, {SCAN: 0, MAP: 0, '/x': 0},
-                          heard_stamp={SCAN: 200 * MS, MAP: 0, '/x': -1}), 200 * MS)
-    ledger.receive(Answer('sim', '/unicycle_sim', 200 * MS, {SCAN: 1, MAP: 1, '/x': 1},
-                          {CMD: 0}, sent_stamp={SCAN: 200 * MS, MAP: 0, '/x': 0}), 200 * MS)
-    assert ledger.waiting_for(200 * MS) == []
-    # Another joins, listening to the map only: its -1 holds its count until it goes.
-    ledger.receive(Answer('d', '/d', 200 * MS, heard={MAP: 0}, heard_stamp={MAP: -1}),
-                   200 * MS)
-    assert ledger.waiting_for(200 * MS) == [] and 'd' not in ledger.synced()
-    ledger.receive(Answer('d', '/d', 200 * MS, heard={MAP: 0}), 200 * MS)
-    assert ledger.waiting_for(200 * MS) == [] and 'd' in ledger.synced()
+    assert controller(200 * MS, scan=100 * MS, x=-1) == ([('c', '/scan', 0)], True)
+    assert controller(200 * MS, scan=200 * MS, x=-1) == ([], True)
+
+
+def test_the_owner_waits_for_the_first_message_on_a_stamped_topic(joined):
+    # Its stamped cmd_vel says -1 until heard (for good, counter.py): a member's first
+    # TwistStamped is waited for as a Twist is counted, not only those after it.
+    ledger, owner = joined
+    ledger.receive(Answer('sim', '/unicycle_sim', owner.now, {ODOM: 1}, {CMD: 0},
+                          sent_stamp={ODOM: owner.now}, heard_stamp={CMD: -1}), owner.now)
+    ledger.receive(Answer('m', '/motion', owner.now, {CMD: 1}, {ODOM: 1},
+                          sent_stamp={CMD: owner.now}, heard_stamp={ODOM: owner.now}),
+                   owner.now)
+    reasons = ledger.waiting_for(owner.now)
+    assert reasons == [('sim', CMD, 0)]
+    assert ledger.describe(reasons[0], owner.now) == (
+        '/unicycle_sim has not heard the latest message on /cmd_vel (stamped 0.020 s by '
+        '/motion; it heard none yet)')
+    ledger.receive(Answer('sim', '/unicycle_sim', owner.now, {ODOM: 1}, {CMD: 1},
+                          sent_stamp={ODOM: owner.now}, heard_stamp={CMD: owner.now}),
+                   owner.now)
+    assert ledger.waiting_for(owner.now) == []

@@ -14,6 +14,7 @@
 
 """The lockstep clock across nodes: answers pace it, its timer only watches, and its bytes."""
 
+import math
 import time
 
 from geometry_msgs.msg import Twist
@@ -25,6 +26,7 @@ from rclpy.serialization import deserialize_message
 from rclpy.serialization import serialize_message
 from sim_diffdrive.cdr import read_string
 from sim_diffdrive.cdr import string_message
+from sim_diffdrive.lockstep.counter import MessageCounter
 from sim_diffdrive.lockstep.participant import take_part
 from sim_diffdrive.sim import clock as clock_module
 from std_msgs.msg import String
@@ -93,3 +95,12 @@ def test_answers_pace_the_clock_and_its_timer_only_watches(graph, monkeypatch):
     assert len(ticks) - ticked < 25 / 2  # 25 steps, most of them taken on answers
     driver.lockstep.leave()
     assert graph.spin_until(lambda: clock.timer.timer_period_ns == 20_000_000, 5.0)
+
+
+def test_the_owner_waits_for_a_first_stamped_command_as_for_a_counted_one(graph):
+    # -1 for good on its stamped subscriptions: a member's first TwistStamped is waited for
+    # (test_handshake.py), not only those after the simulator has heard one.
+    sim = graph.sim(stepped=False, publish_clock=True, lockstep=True, stamped=True)
+    counter = MessageCounter.of(sim, '/clock')
+    assert counter.heard_stamp == {'/cmd_vel': -1, '/initialpose': -1}
+    assert counter.unheard_s == math.inf

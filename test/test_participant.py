@@ -25,7 +25,6 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.time import Time
 from rosgraph_msgs.msg import Clock as ClockMsg
-from sim_diffdrive.lockstep import counter as counter_module
 from sim_diffdrive.lockstep.handshake import Answer
 from sim_diffdrive.lockstep.handshake import Roster
 from sim_diffdrive.lockstep.participant import ANSWER_QOS
@@ -227,22 +226,21 @@ def test_a_roster_that_says_it_was_dropped_is_noted_once_per_drop(node):
     assert lockstep.dropped_ns == 4_000_000_000 and len(warned) == 2
 
 
-def test_nothing_heard_is_minus_one_for_a_while_and_a_stale_stamp_never_lowers(node,
-                                                                               monkeypatch):
+def test_nothing_heard_is_minus_one_for_a_while_and_a_stale_stamp_never_lowers(node):
     # -1: the owner counts a joiner once it has heard each (test_handshake.py), and after
     # UNHEARD_S it is said no more (a message that never comes holds no join up).
     sub = node.create_subscription(Odometry, 'odom', lambda msg: None, 10)
     node.create_subscription(Odometry, 'never', lambda msg: None, 10)
     node.create_subscription(Twist, 'unstamped', lambda msg: None, 10)
     counter = take_part(node).counter
-    assert counter.heard_stamp == {'/odom': -1, '/never': -1}
+    assert counter.heard_stamp == {'/odom': -1, '/never': -1} and counter.unheard_s == 2.0
     for seconds in (3, 0, 2):
         odom = Odometry()
         odom.header.stamp = Time(seconds=seconds).to_msg()
         sub.callback(odom)
     assert counter.heard['/odom'] == 3
     assert counter.heard_stamp == {'/odom': 3_000_000_000, '/never': -1}
-    monkeypatch.setattr(counter_module, 'UNHEARD_S', 0.0)
+    counter.unheard_s = 0.0
     sub.callback(odom)
     assert counter.heard_stamp == {'/odom': 3_000_000_000}
 

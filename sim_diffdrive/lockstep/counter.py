@@ -29,6 +29,7 @@ on (_SimTimeCalls).  test/test_rclpy_behaviour.py pins each, so an rclpy update 
 one fails there.  No rcl schedule is moved here: no ``reset()``, no period written.
 """
 
+import math
 import struct
 import time
 
@@ -41,7 +42,8 @@ from sim_diffdrive.lockstep.handshake import ignored_topics
 
 _NS = 1_000_000_000
 # How long a participant's stamped subscription says "nothing heard yet" (-1) [s, wall]: a
-# joiner is counted once it has heard each (see StepLedger.waiting_for), or after this.
+# joiner is counted once it has heard each (see StepLedger.waiting_for), or after this.  The
+# clock owner says it for good: it waits for the first message on it as for any other.
 UNHEARD_S = 2.0
 
 
@@ -53,37 +55,37 @@ class MessageCounter:
     callback.  With ``timers`` false the node's timers are left alone (a clock owner's timers
     are its own).  Entities the node creates later are wrapped after its next callback, unless
     ``fixed`` says it creates none (a simulator with hundreds of robots need not look each
-    time; whoever adds entities to it calls ``wrap_new``).  With ``unheard`` (a participant's)
-    a stamped topic it subscribes to and has heard nothing on is in ``heard_stamp`` as -1, for
-    up to UNHEARD_S: the clock owner counts a joiner once it has heard each.
+    time; whoever adds entities to it calls ``wrap_new``).  With ``unheard_s`` a stamped topic
+    it subscribes to and has heard nothing on is in ``heard_stamp`` as -1 for that long [s,
+    wall; math.inf: for good], so the clock owner can wait for its first message too.
     """
 
     @classmethod
-    def of(cls, node, clock_topic, timers=False, fixed=False, unheard=False):
+    def of(cls, node, clock_topic, timers=False, fixed=False, unheard_s=None):
         """
         Return node's counter, made on first use; ``timers`` true also counts its timers.
 
-        The first caller's clock_topic and ``fixed`` hold; ``timers`` and ``unheard`` once true
-        stay true.
+        The first caller's clock_topic, ``fixed`` and ``unheard_s`` hold (though one comes
+        with an ``unheard_s`` to a counter without); ``timers`` once true stays true.
         """
         counter = getattr(node, '_message_counter', None)
         if counter is None:
-            counter = node._message_counter = cls(node, clock_topic, timers, fixed, unheard)
+            counter = node._message_counter = cls(node, clock_topic, timers, fixed, unheard_s)
         else:
             if timers and not counter._timers:
                 counter._timers = True
                 counter.wrap_new()
-            if unheard and not counter._unheard:
-                counter._unheard = True
+            if unheard_s is not None and counter.unheard_s is None:
+                counter.unheard_s = unheard_s
                 for topic in counter._stamped:
                     counter._declare_unheard(topic)
         return counter
 
-    def __init__(self, node, clock_topic, timers, fixed, unheard=False):
+    def __init__(self, node, clock_topic, timers, fixed, unheard_s=None):
         self.node = node
         self._timers = timers
         self._fixed = fixed
-        self._unheard = unheard
+        self.unheard_s = unheard_s
         self._stamped = set()  # the stamped topics it subscribes to
         self._unheard_since = {}  # topic -> when it was declared unheard [s, monotonic]
         self._ignored = ignored_topics(clock_topic)
@@ -91,7 +93,7 @@ class MessageCounter:
         self.sent = {}
         self.heard = {}
         # The highest header stamp [ns] published / handled per topic: a foreign node's stale
-        # or zero stamp never lowers what was heard (-1: nothing heard yet, see ``unheard``).
+        # or zero stamp never lowers what was heard (-1: nothing heard yet, see ``unheard_s``).
         self.sent_stamp = {}
         self.heard_stamp = {}
         self.clock_ns = None
@@ -117,7 +119,7 @@ class MessageCounter:
                     stamp_ns = _stamp_reader(sub.msg_type)
                     if stamp_ns is not None:
                         self._stamped.add(topic)
-                        if self._unheard:
+                        if self.unheard_s is not None:
                             self._declare_unheard(topic)
                     sub.callback = self._heard_callback(sub.callback, topic, stamp_ns)
                 sub._lockstep_counter = self
@@ -136,15 +138,16 @@ class MessageCounter:
     def _declare_unheard(self, topic):
         if topic not in self.heard_stamp:
             self.heard_stamp[topic] = -1
-            self._unheard_since[topic] = time.monotonic()
+            if self.unheard_s < math.inf:
+                self._unheard_since[topic] = time.monotonic()
 
     def _expire_unheard(self):
-        """Stop saying -1 for a topic heard since, or unheard for UNHEARD_S (it may never come)."""
+        """Stop saying -1 for a topic heard since, or unheard for unheard_s (it may never come)."""
         now = time.monotonic()
         for topic, since in list(self._unheard_since.items()):
             if self.heard_stamp.get(topic, 0) >= 0:
                 del self._unheard_since[topic]
-            elif now - since > UNHEARD_S:
+            elif now - since > self.unheard_s:
                 del self.heard_stamp[topic], self._unheard_since[topic]
 
     def _after(self):

@@ -275,7 +275,7 @@ class StepLedger:
         message written while its subscription was being matched may never reach it (a DDS
         volatile reader gets what is written after both sides matched), and no repair brings
         it; the next step's does, in writer order.  A counted member's -1 (a subscription made
-        since) is not waited for: it may never match.
+        since) is not waited for: it may never match.  The owner's -1 is, as a count is.
         """
         # Most news is one more answer while others are missing: say so without the counts
         # (which cost time in proportion to members x topics).
@@ -294,7 +294,7 @@ class StepLedger:
             floor = member.stamp_floor
             behind = [(pid, topic, 0) for topic, stamp in answer.heard_stamp.items()
                       if max(stamp, floor.get(topic, stamp)) < stamps.get(topic, stamp)
-                      and (stamp >= 0 or not member.synced)]
+                      and (stamp >= 0 or not member.synced or pid == self.owner)]
             if member.synced:
                 reasons += behind
             elif not behind and answer.step_ns >= now_ns:
@@ -406,8 +406,8 @@ class StepLedger:
             senders = sorted(m.answer.node for m in self.members.values()
                              if m.answer.sent_stamp.get(topic) == latest)
             return (f'{member.answer.node} has not heard the latest message on {topic} '
-                    f'(stamped {latest / _NS:.3f} s by {", ".join(senders)}; it heard up to '
-                    f'{heard / _NS:.3f} s)')
+                    f'(stamped {latest / _NS:.3f} s by {", ".join(senders)}; it heard '
+                    + (f'up to {heard / _NS:.3f} s)' if heard >= 0 else 'none yet)'))
         return f'{member.answer.node} has not handled {due} message(s) on {topic}'
 
     def _latest_stamps(self):

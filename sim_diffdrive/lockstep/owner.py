@@ -90,7 +90,8 @@ class LockstepOwner:
                                                 ROSTER_QOS)
         # The simulator's own traffic (cmd_vel heard, odom sent) is counted like a
         # participant's; its answer holds the counter's live dicts, so only its step changes.
-        counter = MessageCounter.of(sim, self._clock_topic, fixed=True)
+        # A stamped command's first message is waited for too (-1 until heard, for good).
+        counter = MessageCounter.of(sim, self._clock_topic, fixed=True, unheard_s=math.inf)
         self._own_answer = Answer(self._owner_id, sim.get_fully_qualified_name(), sim.now_ns(),
                                   counter.sent, counter.heard, False, counter.sent_stamp,
                                   counter.heard_stamp)

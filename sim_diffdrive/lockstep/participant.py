@@ -33,6 +33,7 @@ from rclpy.qos import ReliabilityPolicy
 from sim_diffdrive.cdr import string_message
 from sim_diffdrive.lockstep.counter import clock_topic
 from sim_diffdrive.lockstep.counter import MessageCounter
+from sim_diffdrive.lockstep.counter import UNHEARD_S
 from sim_diffdrive.lockstep.handshake import Answer
 from sim_diffdrive.lockstep.handshake import answer_topic
 from sim_diffdrive.lockstep.handshake import Roster
@@ -102,7 +103,7 @@ class Participant:
         return Member(self, node)
 
     def _answer_for(self, node):
-        counter = MessageCounter.of(node, self._clock_topic, timers=True, unheard=True)
+        counter = MessageCounter.of(node, self._clock_topic, timers=True, unheard_s=UNHEARD_S)
         self._nodes[node] = _NodeState(counter)
         self._active += 1
         counter.listeners.append(lambda: self._answer_if_settled(node))
