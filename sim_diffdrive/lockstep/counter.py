@@ -149,6 +149,9 @@ class MessageCounter:
                 del self._unheard_since[topic]
             elif now - since > self.unheard_s:
                 del self.heard_stamp[topic], self._unheard_since[topic]
+                self.node.get_logger().info(
+                    f'Lockstep: nothing heard on {topic} within {self.unheard_s:g} s; taking '
+                    'part without waiting for a first message on it')
 
     def _after(self):
         if not self._fixed:
