@@ -64,4 +64,4 @@ class CircleBackAndForth(TimedMotion):
 
 def main(args=None):
     """Drive out and back until done or stopped; returns the exit code."""
-    return run(CircleBackAndForth, args)
+    return run(CircleBackAndForth, args, 'circle_back_and_forth')

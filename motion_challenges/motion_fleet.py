@@ -224,4 +224,4 @@ def make_fleet():
 
 def main(args=None):
     """Run one motion per robot until all have finished; returns the worst exit code."""
-    return run(make_fleet, args)
+    return run(make_fleet, args, 'motion_fleet')

@@ -74,4 +74,4 @@ class OdomOutAndBack(MotionNode):
 
 def main(args=None):
     """Drive the legs on odometry and stop; returns the exit code."""
-    return run(OdomOutAndBack, args)
+    return run(OdomOutAndBack, args, 'odom_out_and_back')

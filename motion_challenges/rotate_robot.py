@@ -132,4 +132,4 @@ def ask_missing(node, read_line=None, write=None):
 
 def main(args=None):
     """Ask, rotate, stop; returns the exit code."""
-    return run(lambda: ask_missing(RotateRobot()), args)
+    return run(lambda: ask_missing(RotateRobot()), args, 'rotate_robot')

@@ -67,4 +67,4 @@ class TimedOutAndBack(TimedMotion):
 
 def main(args=None):
     """Drive the legs and stop; returns the exit code."""
-    return run(TimedOutAndBack, args)
+    return run(TimedOutAndBack, args, 'timed_out_and_back')

@@ -101,15 +101,16 @@ def worst_exit_code(nodes):
     return max((code for code in codes if code is not None), default=EXIT_OK)
 
 
-def run(make_node, args=None):
+def run(make_node, args=None, name='motion_challenges'):
     """
     Initialise rclpy, build the node(s) with ``make_node()``, spin until done, clean up.
 
     ``make_node()`` may return a list of nodes sharing one executor.  Returns the worst
     ``exit_code`` of the nodes that finished (0 for none, after a user interrupt); 2 for a bad
-    parameter or input; 1 otherwise, and whenever a ``shutdown_hook`` failed.
+    parameter or input; 1 otherwise, and whenever a ``shutdown_hook`` failed.  ``name`` is the
+    logger of what is said before a node exists (a bad parameter): the executable's name.
     """
-    logger = rclpy.logging.get_logger('motion_challenges')
+    logger = rclpy.logging.get_logger(name)
     use_package_profile()  # before the first node makes the process's DDS participant
     try:
         rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)

@@ -146,7 +146,7 @@ def test_bad_parameters_are_refused_by_name_by_every_motion(run_main, module, pa
     executable = module.__name__.rpartition('.')[2]
     code, output = run_main(module.main, executable, '--ros-args', '-p', param)
     assert code == 2, output
-    assert expected in output and 'Traceback' not in output, output
+    assert f'[{executable}]: {expected}' in output and 'Traceback' not in output, output
 
 
 def test_simulator_refuses_garbage_commands_and_stale_stamps(graph, capfd):

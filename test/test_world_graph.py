@@ -268,14 +268,17 @@ def test_bad_worlds_are_refused_by_name(ros_context, tmp_path):
                                          scan_range_max=2.0)
 
 
-def test_a_missing_map_file_ends_unicycle_sim_with_exit_2_naming_it(run_main, tmp_path):
+def test_a_missing_map_file_ends_unicycle_sim_with_exit_2_naming_it(
+        run_main, tmp_path, monkeypatch):
     # Its main() in this process, as the console script calls it (test_colcon_layout.py; a
     # process shows main()'s return is the exit code once per package, test_faults.py).
-    missing = str(tmp_path / 'nowhere.yaml')
+    # A relative path is from where it was started: the error says where that is.
+    monkeypatch.chdir(tmp_path)
     code, output = run_main(sim_main, 'unicycle_sim', '--ros-args', '-p',
-                            f'map_file:={missing}')
+                            'map_file:=maps/nowhere.yaml')
     assert code == 2, output
-    assert "'map_file'" in output and 'nowhere.yaml' in output
+    assert "[unicycle_sim]: parameter 'map_file'" in output, output  # its name, no node yet
+    assert f'maps/nowhere.yaml ({tmp_path}/maps/nowhere.yaml)' in output
     assert 'Traceback' not in output
 
 

@@ -374,4 +374,4 @@ class UnicycleSim(Node):
 
 def main(args=None):
     """Run the simulator until interrupted; returns the exit code."""
-    return run(UnicycleSim, args)
+    return run(UnicycleSim, args, 'unicycle_sim')

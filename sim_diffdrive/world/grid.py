@@ -128,6 +128,8 @@ def load_map(yaml_path):
     """Read a map_server YAML and its image into a GridMap (MapError names the file and key)."""
     path = os.path.expanduser(os.fspath(yaml_path))
     where = 'map file %s' % path
+    if not os.path.isabs(path):  # relative to where the process was started: say where that is
+        where += ' (%s)' % os.path.abspath(path)
     if os.path.isdir(path):
         raise MapError('%s: is a folder, not a map_server YAML' % where)
     if not os.path.isfile(path):
