@@ -234,14 +234,16 @@ def test_nothing_heard_is_minus_one_for_a_while_and_a_stale_stamp_never_lowers(n
     node.create_subscription(Twist, 'unstamped', lambda msg: None, 10)
     counter = take_part(node).counter
     assert counter.heard_stamp == {'/odom': -1, '/never': -1} and counter.unheard_s == 2.0
+    counter.unheard_s = 0.0  # from the first /clock (a simulator is there) on
+    clock = next(sub for sub in node.subscriptions if sub.msg_type is ClockMsg)
+    sub.callback(Odometry())  # no /clock yet: '/never' still -1 after this callback
+    assert counter.heard_stamp == {'/odom': 0, '/never': -1}
+    clock.callback(ClockMsg())
     for seconds in (3, 0, 2):
         odom = Odometry()
         odom.header.stamp = Time(seconds=seconds).to_msg()
         sub.callback(odom)
-    assert counter.heard['/odom'] == 3
-    assert counter.heard_stamp == {'/odom': 3_000_000_000, '/never': -1}
-    counter.unheard_s = 0.0
-    sub.callback(odom)
+    assert counter.heard['/odom'] == 4
     assert counter.heard_stamp == {'/odom': 3_000_000_000}
 
 
@@ -473,8 +475,8 @@ def test_a_process_answers_once_a_step_for_all_its_nodes(ros_context, node):
 
 
 def test_a_node_that_heard_no_stamp_leaves_the_others_waited_for(ros_context, node):
-    # A node that has heard nothing stamped on a topic (-1) does not lower what the others
-    # that have say: their stamps still count.
+    # A node that has heard nothing stamped on a topic (-1) holds the count back for all while
+    # they join; once counted, it does not lower what the others that have heard say.
     other = Node('other', context=ros_context,
                  parameter_overrides=[Parameter('use_sim_time', value=True)])
     try:
@@ -485,6 +487,8 @@ def test_a_node_that_heard_no_stamp_leaves_the_others_waited_for(ros_context, no
         msg = Odometry()
         msg.header.stamp = Time(seconds=4).to_msg()
         subs[0].callback(msg)
+        assert lockstep._totals()[1][3] == {'/odom': -1}
+        lockstep.joined = True  # as a roster that counts it says
         _, (_, heard, _, heard_stamp) = lockstep._totals()
         assert heard == {'/odom': 0} and heard_stamp == {'/odom': 4_000_000_000}
     finally:

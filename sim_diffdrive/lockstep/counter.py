@@ -41,9 +41,10 @@ from sim_diffdrive.cdr import UnsupportedEncoding
 from sim_diffdrive.lockstep.handshake import ignored_topics
 
 _NS = 1_000_000_000
-# How long a participant's stamped subscription says "nothing heard yet" (-1) [s, wall]: a
-# joiner is counted once it has heard each (see StepLedger.waiting_for), or after this.  The
-# clock owner says it for good: it waits for the first message on it as for any other.
+# How long a participant's stamped subscription says "nothing heard yet" (-1) [s, wall, from
+# its first /clock]: a joiner is counted once it has heard each (see StepLedger.waiting_for),
+# or after this.  The clock owner says it for good: it waits for the first message on it as
+# for any other.
 UNHEARD_S = 2.0
 
 
@@ -56,8 +57,9 @@ class MessageCounter:
     are its own).  Entities the node creates later are wrapped after its next callback, unless
     ``fixed`` says it creates none (a simulator with hundreds of robots need not look each
     time; whoever adds entities to it calls ``wrap_new``).  With ``unheard_s`` a stamped topic
-    it subscribes to and has heard nothing on is in ``heard_stamp`` as -1 for that long [s,
-    wall; math.inf: for good], so the clock owner can wait for its first message too.
+    it subscribes to and has heard nothing on is in ``heard_stamp`` as -1 for that long from
+    its first /clock [s, wall; math.inf: for good], so the clock owner can wait for its first
+    message too; the topics whose -1 went so are added to ``unheard_expired``.
     """
 
     @classmethod
@@ -87,7 +89,8 @@ class MessageCounter:
         self._fixed = fixed
         self.unheard_s = unheard_s
         self._stamped = set()  # the stamped topics it subscribes to
-        self._unheard_since = {}  # topic -> when it was declared unheard [s, monotonic]
+        self._unheard_since = {}  # topic -> since when unheard [s, monotonic; None: no clock]
+        self.unheard_expired = []
         self._ignored = ignored_topics(clock_topic)
         self.listeners = []
         self.sent = {}
@@ -138,8 +141,8 @@ class MessageCounter:
     def _declare_unheard(self, topic):
         if topic not in self.heard_stamp:
             self.heard_stamp[topic] = -1
-            if self.unheard_s < math.inf:
-                self._unheard_since[topic] = time.monotonic()
+            if self.unheard_s < math.inf:  # counted from the first /clock: a simulator is up
+                self._unheard_since[topic] = None if self.clock_ns is None else time.monotonic()
 
     def _expire_unheard(self):
         """Stop saying -1 for a topic heard since, or unheard for unheard_s (it may never come)."""
@@ -147,11 +150,12 @@ class MessageCounter:
         for topic, since in list(self._unheard_since.items()):
             if self.heard_stamp.get(topic, 0) >= 0:
                 del self._unheard_since[topic]
+            elif since is None:
+                if self.clock_ns is not None:
+                    self._unheard_since[topic] = now
             elif now - since > self.unheard_s:
                 del self.heard_stamp[topic], self._unheard_since[topic]
-                self.node.get_logger().info(
-                    f'Lockstep: nothing heard on {topic} within {self.unheard_s:g} s; taking '
-                    'part without waiting for a first message on it')
+                self.unheard_expired.append(topic)
 
     def _after(self):
         if not self._fixed:

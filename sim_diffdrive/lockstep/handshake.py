@@ -152,8 +152,9 @@ class _Member:
         self.synced = False
         # It said goodbye: it answers no more, but what it sent is still waited for.
         self.leaving = False
-        # What this member had sent before it joined is nobody's debt.
+        # What this member had sent before it joined is nobody's debt, nor its stamps.
         self.base_sent = dict(answer.sent)
+        self.base_sent_stamp = dict(answer.sent_stamp)
         # Per subscribed topic: messages sent by members that this member will never hear
         # (sent before it joined, or beyond what it heard from non-members).
         self.offset = {}
@@ -404,17 +405,21 @@ class StepLedger:
             heard = max(member.answer.heard_stamp.get(topic, -1),
                         member.stamp_floor.get(topic, -1))
             senders = sorted(m.answer.node for m in self.members.values()
-                             if m.answer.sent_stamp.get(topic) == latest)
+                             if m.answer.sent_stamp.get(topic) == latest
+                             and latest > m.base_sent_stamp.get(topic, -1))
             return (f'{member.answer.node} has not heard the latest message on {topic} '
                     f'(stamped {latest / _NS:.3f} s by {", ".join(senders)}; it heard '
                     + (f'up to {heard / _NS:.3f} s)' if heard >= 0 else 'none yet)'))
         return f'{member.answer.node} has not handled {due} message(s) on {topic}'
 
     def _latest_stamps(self):
+        """Return {stamped topic: the latest stamp members sent on it since joining, or -1}."""
         stamps = {}
         for member in self.members.values():
+            base = member.base_sent_stamp
             for topic, stamp in member.answer.sent_stamp.items():
-                stamps[topic] = max(stamps.get(topic, stamp), stamp)
+                stamps[topic] = max(stamps.get(topic, -1), stamp if stamp > base.get(topic, -1)
+                                    else -1)
         return stamps
 
     def _sent_since_join(self):

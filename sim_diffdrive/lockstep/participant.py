@@ -190,12 +190,11 @@ class Participant:
             step_ns = max(step_ns, c.clock_ns or 0)
             for topic, count in c.heard.items():
                 heard[topic] = min(heard.get(topic, count), count)
-            # A node that has heard nothing on a topic (-1) does not lower what those that
-            # have heard say: -1 only while none has.
+            # While joining, a node's -1 (nothing heard yet) holds the count back for all
+            # (counter.py); once counted it does not lower what those that have heard say.
             for topic, stamp in c.heard_stamp.items():
-                known = heard_stamp.get(topic, -1)
-                heard_stamp[topic] = stamp if known < 0 else min(known, stamp) if stamp >= 0 \
-                    else known
+                low, high = sorted((heard_stamp.get(topic, stamp), stamp))
+                heard_stamp[topic] = low if low >= 0 or not self.joined else high
         return step_ns, (sent, heard, sent_stamp, heard_stamp)
 
     def leave(self, ack_timeout=0.5):
@@ -236,6 +235,8 @@ class Participant:
         state = self._nodes[node]
         if not state.executor_checked:
             state.executor_checked = _check_executor(node)
+        if state.counter.unheard_expired:
+            self._say_unheard(node, state.counter)
         if not state.active:
             return
         if self._answered_later(state.counter):
@@ -244,6 +245,14 @@ class Participant:
         self._mark(state, _settled_ns(node, state.counter))
         if self.settled():
             self.answer()
+
+    def _say_unheard(self, node, counter):
+        """Say which topics a joining node stops waiting to hear (counter.unheard_expired)."""
+        topics, counter.unheard_expired = counter.unheard_expired, []
+        if not self.joined and self.owner_present:
+            node.get_logger().info(
+                f'Lockstep: nothing heard on {", ".join(topics)} within {counter.unheard_s:g} '
+                's of the first /clock; to be counted without waiting for a first message')
 
     def _answered_later(self, counter):
         """Return whether the message just handled is better answered by a later callback."""
