@@ -348,3 +348,18 @@ def test_a_robot_refused_its_place_stays_and_others_keep_off_it():
     # On the empty plane robots pass through each other: nothing is refused.
     plane = World([(0.0, 0.0, 0.0)] * 2)
     assert plane.reset_all([(1.0, 1.0, 0.0)] * 2) == {} and plane.x.tolist() == [1.0, 1.0]
+
+
+def test_a_robot_that_stood_while_another_drove_off_says_its_next_touch_again():
+    world = World([(1.0, 1.0, 0.0), (1.25, 1.0, 0.0)], walls=open_floor())
+    world.begin(0)
+    world.command(0, 1.0, 0.0, 0)  # robot 0 drives into robot 1, which stands
+    world.step_to(100_000_000)
+    assert [(event.kind, event.robot) for event in world.take_events()] == [
+        ('robot', 0), ('robot', 1)]
+    world.command(0, -1.0, 0.0, 100_000_000)  # off, and back into it
+    world.step_to(200_000_000)
+    world.command(0, 1.0, 0.0, 200_000_000)
+    world.step_to(400_000_000)
+    assert [(event.kind, event.robot) for event in world.take_events()] == [
+        ('robot', 0), ('robot', 1)]

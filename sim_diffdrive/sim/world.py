@@ -37,6 +37,7 @@ from sim_diffdrive.kinematics import limit_command
 from sim_diffdrive.kinematics import normalize_angles
 from sim_diffdrive.world.contact import earliest_touch
 from sim_diffdrive.world.contact import overlaps_robot
+from sim_diffdrive.world.contact import TOUCH
 from sim_diffdrive.world.contact import Track
 
 _NS = 1_000_000_000
@@ -473,6 +474,17 @@ class World:
         for i in moved:  # drove free of every robot
             if self.touching[i] == 'robot':
                 self.touching[i] = None
+        # One that stood while the other drove off is free too: its next touch is said again.
+        paired = {k for pair in touched for k in pair}
+        standing = [i for i, kind in enumerate(self.touching) if kind == 'robot'
+                    and i not in paired and i not in moved]
+        if standing:
+            mx, my, _ = self.map_poses()
+            for i in standing:
+                gaps = np.hypot(mx - mx[i], my - my[i])
+                gaps[i] = np.inf
+                if gaps.min() > 2.0 * self.radius + TOUCH:
+                    self.touching[i] = None
 
     def _replay(self, i, drive, at):
         """Put robot i back where its drive had brought it at [s into the step]."""
