@@ -453,25 +453,25 @@ def test_answered_says_whether_only_counts_are_left_to_wait_for(joined):
 
 
 def test_a_joiner_is_counted_once_it_has_heard_each_stamped_topic_members_send():
-    # A controller hears scans (every fifth step) and a map sent once, long before (-1:
-    # nothing heard yet).  Counted only once it has heard a scan, so that every later scan,
-    # the first it replies to included, is waited for; its -1 for the map goes from its
+    # A controller hears scans (every fifth step, none yet at time 0) and a map sent once
+    # (-1: nothing heard yet).  Counted only once it has heard a scan, so that every later
+    # scan, the first it replies to included, is waited for; its -1 for the map goes from its
     # answer after UNHEARD_S (counter.py); a -1 once counted holds nobody (it may never match).
     ledger = StepLedger('sim')
-    ledger.receive(Answer('sim', '/sim', 0), 0)  # before it sent anything
+    published = {'/scan': 0, '/map': 1, '/x': 0}  # its publishers: no scan sent yet
+    ledger.receive(Answer('sim', '/sim', 0, dict(published)), 0)
 
     def owner(now, scan_ns):
-        ledger.receive(Answer('sim', '/sim', now, sent_stamp={
+        ledger.receive(Answer('sim', '/sim', now, published, sent_stamp={
             '/scan': scan_ns, '/map': 0, '/x': 0}), now)
 
     def controller(now, **heard):
         ledger.receive(Answer('c', '/c', now, heard_stamp={
             '/' + topic: stamp for topic, stamp in heard.items()}), now)
         return ledger.waiting_for(now), 'c' in ledger.synced()
-    owner(20 * MS, 20 * MS)
-    for now in (20 * MS, 40 * MS):  # it never holds the clock while it joins
+    for now in (0, 20 * MS, 40 * MS):  # it never holds the clock while it joins
         assert controller(now, scan=-1, map=-1) == ([], False)
-        owner(now + 20 * MS, 20 * MS)
+        owner(now + 20 * MS, 0 if now == 0 else 20 * MS)
     owner(100 * MS, 100 * MS)
     assert controller(100 * MS, scan=100 * MS, map=-1) == ([], False)
     assert controller(100 * MS, scan=100 * MS) == ([], True)  # the map's -1 has gone
