@@ -274,11 +274,11 @@ class StepLedger:
         caught up on every stamped topic it hears, and has heard something on each it has heard
         nothing on yet (-1, counter.py) that a member has a publisher on (sent one or not: a
         simulator at time 0 has sent no scan yet), so that once counted it is waited for on
-        all of them.  A
-        message written while its subscription was being matched may never reach it (a DDS
-        volatile reader gets what is written after both sides matched), and no repair brings
-        it; the next step's does, in writer order.  A counted member's -1 (a subscription made
-        since) is not waited for: it may never match.  The owner's -1 is, as a count is.
+        all of them.  A message written while its subscription was being matched may never
+        reach it (a DDS volatile reader gets what is written after both sides matched), and no
+        repair brings it; the next step's does, in writer order.  A counted member's -1 (a
+        subscription made since) is not waited for: it may never match.  The owner's -1 is, as
+        a count is.
         """
         # Most news is one more answer while others are missing: say so without the counts
         # (which cost time in proportion to members x topics).
