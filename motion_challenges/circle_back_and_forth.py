@@ -51,11 +51,12 @@ class CircleBackAndForth(TimedMotion):
 
     def control(self, now_ns):
         command = super().control(now_ns)
-        p = self.params
-        cycles, into_cycle = divmod(self.elapsed(now_ns), 2.0 * p.half_period)
-        leg = 'out' if into_cycle < p.half_period else 'back'
-        total = f' of {p.cycles}' if p.cycles else ''
-        self.progress(f'Cycle {int(cycles) + 1}{total}, driving {leg}')
+        if command is not None:  # not on the tick that ends the last cycle
+            p = self.params
+            cycles, into_cycle = divmod(self.elapsed(now_ns), 2.0 * p.half_period)
+            leg = 'out' if into_cycle < p.half_period else 'back'
+            total = f' of {p.cycles}' if p.cycles else ''
+            self.progress(f'Cycle {int(cycles) + 1}{total}, driving {leg}', phase=True)
         return command
 
     def goal_pose(self, start):

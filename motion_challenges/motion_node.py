@@ -141,6 +141,7 @@ class MotionNode(Node):
         # numbers of it (OdomPose).
         self.create_subscription(Odometry, 'odom', self.watch.on_odom, 50, raw=True)
         self._progress_log = Throttle(1.0)  # a progress line a second
+        self._logged = None
         self.run_odoms = []  # the OdomPose of each odometry while running or settling
         self.sent_commands = []  # for plot_file: (time_ns, linear, angular) of each command
         self.turned = YawAccumulator()
@@ -247,9 +248,10 @@ class MotionNode(Node):
         """Return the robot's (metres, radians) since the latest odometry, and speeds now."""
         return self.commands.predict(self.odom.stamp_ns, now_ns, self.odom.twist, self.robot_accel)
 
-    def progress(self, text):
-        """Log text, called each tick: a line a second at most."""
-        if self._progress_log.allows():
+    def progress(self, text, phase=False):
+        """Log text, called each tick: a line a second at most; a new phase (phase) at once."""
+        if text != self._logged if phase else self._progress_log.allows():
+            self._logged = text
             self.get_logger().info(text)
 
     def _use_odom(self, odom):

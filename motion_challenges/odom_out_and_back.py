@@ -68,7 +68,8 @@ class OdomOutAndBack(MotionNode):
     def control(self, now_ns):
         command = self.legs.command(now_ns, self.odom, self.turned.total, *self.predict(now_ns))
         if command is not None:
-            self.progress(f'Leg {self.legs.leg} of {self.params.legs}: {self.legs.step.value}')
+            self.progress(f'Leg {self.legs.leg} of {self.params.legs}: {self.legs.step.value}',
+                          phase=True)
         return command
 
 

@@ -15,6 +15,7 @@
 """The motions against the simulator in one process, on lockstep simulated time."""
 
 import math
+import re
 
 from motion_challenges.circle_back_and_forth import CircleBackAndForth
 from motion_challenges.odom_out_and_back import OdomOutAndBack
@@ -101,6 +102,22 @@ def test_out_and_back_returns_to_start(graph, node_class):
     assert angle_error(yaw, 0.5) < HUNDREDTH_DEG
     # Halfway, the robot stood goal_distance away, facing back.
     assert probe.odom.twist.twist.linear.x == 0.0
+
+
+def test_each_phase_is_logged_as_it_begins_however_fast_the_clock_runs(graph, capfd):
+    # In process the run takes a fraction of a wall second: a line a second would skip most.
+    graph.sim()
+    node = graph.node(OdomOutAndBack, goal_distance=0.2, angular_speed=4.0, pause=0.1)
+    capfd.readouterr()
+    run_to_end(graph, node, sim_timeout=20.0)
+    logged = re.findall(r'\]: (Leg \d of 2: \w+)', capfd.readouterr().err)
+    assert logged == [f'Leg {leg} of 2: {step}' for leg in (1, 2)
+                      for step in ('drive', 'pause', 'turn', 'pause')]
+    node = graph.node(CircleBackAndForth, half_period=0.2, cycles=2)
+    run_to_end(graph, node, sim_timeout=20.0)
+    logged = re.findall(r'\]: (Cycle \d of 2, driving \w+)', capfd.readouterr().err)
+    assert logged == [f'Cycle {cycle} of 2, driving {leg}' for cycle in (1, 2)
+                      for leg in ('out', 'back')]
 
 
 def test_circle_returns_after_each_cycle_and_reaches_two_radii(graph):
