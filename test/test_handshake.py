@@ -454,9 +454,9 @@ def test_answered_says_whether_only_counts_are_left_to_wait_for(joined):
 
 def test_a_joiner_is_counted_once_it_has_heard_each_stamped_topic_members_send():
     # A controller hears scans (every fifth step, none yet at time 0) and a map sent once
-    # (-1: nothing heard yet).  Counted only once it has heard a scan, so that every later
-    # scan, the first it replies to included, is waited for; its -1 for the map goes from its
-    # answer after UNHEARD_S (counter.py); a -1 once counted holds nobody (it may never match).
+    # (-1: nothing heard yet).  Counted once it has heard a scan, so every later scan is waited
+    # for; its -1 for the map goes from its answer after UNHEARD_S (counter.py); a -1 once
+    # counted holds nobody, nor one for what only a participant publishes and has not sent.
     ledger = StepLedger('sim')
     published = {'/scan': 0, '/map': 1, '/x': 0}  # its publishers: no scan sent yet
     ledger.receive(Answer('sim', '/sim', 0, dict(published)), 0)
@@ -466,6 +466,7 @@ def test_a_joiner_is_counted_once_it_has_heard_each_stamped_topic_members_send()
             '/scan': scan_ns, '/map': 0, '/x': 0}), now)
 
     def controller(now, **heard):
+        ledger.receive(Answer('p', '/p', now, {'/y': 0}), now)  # a publisher, nothing sent
         ledger.receive(Answer('c', '/c', now, heard_stamp={
             '/' + topic: stamp for topic, stamp in heard.items()}), now)
         return ledger.waiting_for(now), 'c' in ledger.synced()
@@ -474,7 +475,7 @@ def test_a_joiner_is_counted_once_it_has_heard_each_stamped_topic_members_send()
         owner(now + 20 * MS, 0 if now == 0 else 20 * MS)
     owner(100 * MS, 100 * MS)
     assert controller(100 * MS, scan=100 * MS, map=-1) == ([], False)
-    assert controller(100 * MS, scan=100 * MS) == ([], True)  # the map's -1 has gone
+    assert controller(100 * MS, scan=100 * MS, y=-1) == ([], True)  # the map's -1 has gone
     owner(200 * MS, 200 * MS)  # counted: the next scan is waited for
     assert controller(200 * MS, scan=100 * MS, x=-1) == ([('c', '/scan', 0)], True)
     assert controller(200 * MS, scan=200 * MS, x=-1) == ([], True)

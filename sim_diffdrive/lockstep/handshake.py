@@ -272,13 +272,13 @@ class StepLedger:
         holds the clock for its answer to each step after the one it joined in, never for a
         stamped topic: it is counted from the first otherwise settled step at which it has
         caught up on every stamped topic it hears, and has heard something on each it has heard
-        nothing on yet (-1, counter.py) that a member has a publisher on (sent one or not: a
-        simulator at time 0 has sent no scan yet), so that once counted it is waited for on
-        all of them.  A message written while its subscription was being matched may never
-        reach it (a DDS volatile reader gets what is written after both sides matched), and no
-        repair brings it; the next step's does, in writer order.  A counted member's -1 (a
-        subscription made since) is not waited for: it may never match.  The owner's -1 is, as
-        a count is.
+        nothing on yet (-1, counter.py) that a member sent on since it joined or that the owner
+        has a publisher on (sent on or not: at time 0 no scan has been sent yet), so that once
+        counted it is waited for on all of them.  A message written while its subscription was
+        being matched may never reach it (a DDS volatile reader gets what is written after both
+        sides matched), and no repair brings it; the next step's does, in writer order.  A
+        counted member's -1 (a subscription made since) is not waited for: it may never match.
+        The owner's -1 is, as a count is.
         """
         # Most news is one more answer while others are missing: say so without the counts
         # (which cost time in proportion to members x topics).
@@ -297,10 +297,10 @@ class StepLedger:
             floor = member.stamp_floor
             behind = [(pid, topic, 0) for topic, stamp in answer.heard_stamp.items()
                       if max(stamp, floor.get(topic, stamp)) < stamps.get(topic, stamp)
-                      and (stamp >= 0 or pid == self.owner)]
+                      and (stamp >= 0 or not member.synced or pid == self.owner)]
             if member.synced:
                 reasons += behind
-            elif not behind and answer.step_ns >= now_ns and not self._unheard_published(answer):
+            elif not behind and answer.step_ns >= now_ns and not self._unheard_owned(answer):
                 caught_up.append(member)
         reasons += [(pid, topic, due) for (pid, topic), due in self._owed(stamps).items()
                     if due > 0]
@@ -322,11 +322,11 @@ class StepLedger:
                         member.offset[topic] -= sent[topic]
         return reasons
 
-    def _unheard_published(self, answer):
-        """Return whether answer says -1 for a topic that a member has a publisher on."""
-        unheard = [topic for topic, stamp in answer.heard_stamp.items() if stamp < 0]
-        return bool(unheard) and any(topic in member.answer.sent for topic in unheard
-                                     for member in self.members.values())
+    def _unheard_owned(self, answer):
+        """Return whether answer says -1 for a topic the owner has a publisher on."""
+        owner = self.members.get(self.owner)
+        sent = owner.answer.sent if owner is not None else {}
+        return any(stamp < 0 and topic in sent for topic, stamp in answer.heard_stamp.items())
 
     def answered(self, now_ns):
         """Return whether every member has answered the step at now_ns (see waiting_for)."""
