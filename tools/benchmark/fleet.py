@@ -128,6 +128,10 @@ def measure_sim(run, graph, robots, sim, free_clock):
         graph.spin_for(sizes.fleet_settle_s)
         ticks = status(load)['ticks']
         commands = window(graph, sim.pid, first, sizes.fleet_window_s)
+        # The load says its count every 10 ms of wall time: on a busy machine the line read at
+        # the end of a short window (--quick) can be the one read at its start, though the load
+        # commanded every step of it (it takes part: the steps waited for it).
+        graph.spin_until(lambda: status(load)['ticks'] > ticks, 10.0, poll=0.005)
         commands['commands_per_robot'] = status(load)['ticks'] - ticks
     finally:
         run.stop_all([sim] + ([load] if load is not None else []))
