@@ -456,6 +456,7 @@ def test_a_killed_participant_is_left_behind_and_a_late_one_is_waited_for(
     assert angle_error(pose_of(probe.odom)[2], start_yaw - math.radians(90.0)) < 1e-12, output
     turned = sim.output()[before:]
     assert 'Lockstep: /rotate_robot takes part from' in turned, sim.output()
+    assert 'Lockstep: this simulator did not run for' in turned, sim.output()  # it says so
     # Nobody given up since the stopped circle was.
     assert 'going on without' not in turned, sim.output()
     before = len(sim.output())

@@ -165,6 +165,12 @@ class LockstepOwner:
             # Only what fell after the step began counts against its hold.
             self._stalled_s += min(stalled, max(now - wall, 0.0))
             self.ledger.excuse(stalled, now)
+            if stalled > self.sim.params.lockstep_timeout and self.has_members():
+                # Its participants heard nothing meanwhile, not even a re-sent roster: a motion
+                # may have given up on it (odom_timeout), and this says why.
+                self.sim.get_logger().info(
+                    f'Lockstep: this simulator did not run for {stalled:.1f} s (a busy machine, '
+                    'a debugger?); nobody is dropped for it')
 
     def rescheduled(self):
         """Look from now on: the clock timer starts its period again (a new real_time_factor)."""
