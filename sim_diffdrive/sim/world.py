@@ -110,7 +110,7 @@ class World:
         self._drives, self._begin_ns = None, 0
         if walls is not None:
             for i in range(n):
-                self._check_place(i, *self._to_map(i, self.x[i], self.y[i], self.yaw[i]))
+                self._check_place(i, *self._to_map(i, self.x[i], self.y[i], self.yaw[i])[:2])
 
     def __len__(self):
         return len(self.names)
@@ -182,13 +182,13 @@ class World:
     def place(self, i, x, y, yaw):
         """Put robot i at (x, y, yaw) in its odometry frame, at rest; forget its commands."""
         if self.walls is not None:
-            self._check_place(i, *self._to_map(i, x, y, yaw))
+            self._check_place(i, *self._to_map(i, x, y, yaw)[:2])
         self._rest(i, x, y, yaw)
 
     def place_in_map(self, i, x, y, yaw):
         """Put robot i at (x, y, yaw) in the map, at rest; its odometry goes on where it was."""
         if self.walls is not None:
-            self._check_place(i, x, y, yaw)
+            self._check_place(i, x, y)
         ox, oy, oyaw = float(self.x[i]), float(self.y[i]), float(self.yaw[i])
         turn = normalize_angle(yaw - oyaw)
         c, s = math.cos(turn), math.sin(turn)
@@ -207,10 +207,10 @@ class World:
         """
         refused = {}
         if self.walls is not None:
-            targets = [(x, y, normalize_angle(yaw)) for x, y, yaw in poses]
+            targets = [(x, y) for x, y, _ in poses]
             while True:
                 mx, my, _ = self.map_poses()
-                where = [(mx[j], my[j]) if j in refused else targets[j][:2]
+                where = [(mx[j], my[j]) if j in refused else targets[j]
                          for j in range(len(self))]
                 errors = {}
                 for i in set(range(len(self))) - set(refused):
@@ -236,7 +236,7 @@ class World:
         self.touching[i] = None
         self.resting = False
 
-    def _check_place(self, i, x, y, yaw, others=None):
+    def _check_place(self, i, x, y, others=None):
         """
         Raise PlacementError if robot i at (x, y) in the map would be in a wall or a robot.
 
