@@ -97,9 +97,9 @@ def test_answers_pace_the_clock_and_its_timer_only_watches(graph, monkeypatch):
     assert graph.spin_until(lambda: clock.timer.timer_period_ns == 20_000_000, 5.0)
 
 
-def test_the_owner_waits_for_a_first_stamped_command_as_for_a_counted_one(graph):
-    # -1 for good on its stamped subscriptions: a member's first TwistStamped is waited for
-    # (test_handshake.py), not only those after the simulator has heard one.
+def test_the_simulator_says_it_has_heard_no_stamped_command_yet_for_good(graph):
+    # -1 for good on its stamped subscriptions: with it the ledger waits for a member's first
+    # TwistStamped (test_handshake.py's owner test), not only for those after it.
     sim = graph.sim(stepped=False, publish_clock=True, lockstep=True, stamped=True)
     counter = MessageCounter.of(sim, '/clock')
     assert counter.heard_stamp == {'/cmd_vel': -1, '/initialpose': -1}
