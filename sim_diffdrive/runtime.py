@@ -53,9 +53,11 @@ class _Interrupts:
 
     def __init__(self):
         self.deferred = self.requested = False
+        self.signum = None
 
     def __call__(self, signum, frame):
         self.requested = True
+        self.signum = self.signum or signum
         if not self.deferred:
             self.deferred = True
             raise KeyboardInterrupt
@@ -146,7 +148,9 @@ def run(make_node, args=None, name='motion_challenges'):
         logger.error(str(error))
         exit_code = EXIT_USAGE
     except KeyboardInterrupt:
-        logger.info('Interrupted by the user')
+        # SIGTERM is how a launch file, systemd or `kill` stops a process, not a user's Ctrl-C.
+        logger.info('Stopped by SIGTERM' if interrupts.signum == signal.SIGTERM
+                    else 'Interrupted by the user')
         # A motion that had already failed before the interrupt still fails the run.
         exit_code = worst_exit_code([n for n in nodes if getattr(n, 'done', False)])
     except ExternalShutdownException:

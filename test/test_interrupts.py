@@ -120,14 +120,18 @@ def at_rest_since(odoms):
     return odoms[last_moving + 1:]
 
 
-def check_clean_interrupt(proc, problems, label):
+# What a motion says as it ends on each signal.
+ENDING = {signal.SIGINT: 'Interrupted by the user', signal.SIGTERM: 'Stopped by SIGTERM'}
+
+
+def check_clean_interrupt(proc, signum, problems, label):
     output = proc.output()
     if proc.poll() != 0:
         problems.append(f'{label}: exit code {proc.poll()}, expected 0\n{proc.describe()}')
     if 'Traceback' in output or 'Exception in' in output:
         problems.append(f'{label}: not a clean exit\n{proc.describe()}')
-    if 'Interrupted by the user' not in output:
-        problems.append(f'{label}: no "Interrupted by the user"\n{proc.describe()}')
+    if ENDING[signum] not in output:
+        problems.append(f'{label}: no "{ENDING[signum]}"\n{proc.describe()}')
     if (late := (proc.running_at or 0.0) - proc.signalled_at) > 3.0:  # seen running: no lag
         problems.append(f'{label}: running {late:.1f} s after the signal\n{proc.describe()}')
 
@@ -349,7 +353,7 @@ def check_run(robot, run, problems):
         problems.append(f'{run.label}: exited before the phase was reached\n'
                         + run.proc.describe())
         return
-    check_clean_interrupt(run.proc, problems, run.label)
+    check_clean_interrupt(run.proc, run.signum, problems, run.label)
     if robot.sim:
         check_stopped(robot.watcher, run.proc, problems, run.label)
 

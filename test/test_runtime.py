@@ -192,9 +192,17 @@ def test_a_node_without_done_does_not_hold_the_run_once_the_others_are_done(main
 class Interrupting(Finished):
     """Not done; a timer sends this process SIGINT, as Ctrl-C would, once spinning."""
 
+    signum = signal.SIGINT
+
     def __init__(self):
         super().__init__(name='interrupting', done=False)
-        self.create_timer(0.01, lambda: signal.raise_signal(signal.SIGINT))
+        self.create_timer(0.01, lambda: signal.raise_signal(self.signum))
+
+
+class Terminating(Interrupting):
+    """Not done; a timer sends this process SIGTERM, as a launch file or systemd would."""
+
+    signum = signal.SIGTERM
 
 
 def test_ctrl_c_runs_every_hook_and_keeps_a_failure_already_there(main_process):
@@ -203,10 +211,15 @@ def test_ctrl_c_runs_every_hook_and_keeps_a_failure_already_there(main_process):
     assert all(node.calls == ['shutdown_hook', 'destroy_node'] for node in nodes)
 
 
-def test_ctrl_c_with_nothing_failed_exits_0(main_process):
-    code, nodes = run_nodes({}, extra=[Interrupting])
+@pytest.mark.parametrize('signaller,said', [
+    (Interrupting, 'Interrupted by the user'), (Terminating, 'Stopped by SIGTERM')])
+def test_ctrl_c_or_sigterm_with_nothing_failed_exits_0_and_says_which(
+        main_process, capfd, signaller, said):
+    code, nodes = run_nodes({}, extra=[signaller])
     assert code == EXIT_OK
     assert all(node.calls == ['shutdown_hook', 'destroy_node'] for node in nodes)
+    err = capfd.readouterr().err
+    assert said in err and 'Traceback' not in err, err
 
 
 class SignalledWhileEnding(Finished):
