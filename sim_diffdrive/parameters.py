@@ -23,6 +23,7 @@ or read-only, so no set is accepted and then ignored.
 from array import array
 from collections.abc import Sequence
 from dataclasses import dataclass
+import difflib
 import math
 import re
 
@@ -175,7 +176,35 @@ def declare(node, specs, on_change=None):
     if live:
         _LiveParameters(node, live, on_change)
     _clock_chosen_at_start(node)
+    _warn_misspelt(node, specs)
     return Values(node, specs)
+
+
+def given_parameters(node):
+    """
+    Return the names of the parameters given to node (``-p``, a params file), declared or not.
+
+    rclpy 7.1 has no public accessor for them: it keeps them in ``Node._parameter_overrides``
+    (test_rclpy_behaviour.py pins that, so an rclpy that changes it fails there by name).
+    """
+    return tuple(getattr(node, '_parameter_overrides', {}))
+
+
+def _warn_misspelt(node, specs):
+    """
+    Warn about each parameter given to node that it has not, but has one spelt much like it.
+
+    rclpy ignores a parameter a node never declares, without a word, so ``-p initail_x:=1``
+    would start the robot at 0.  A name like none of node's is not warned about: a params file's
+    ``/**`` section, or ``-p`` in a process of several nodes, gives every node the others' too.
+    """
+    names = [spec.name for spec in specs]
+    for name in given_parameters(node):
+        close = difflib.get_close_matches(name, names, n=1, cutoff=0.8)
+        if close and not node.has_parameter(name):
+            node.get_logger().warning(
+                f"Ignoring parameter '{name}': {node.get_name()} has none by that name (did you "
+                f"mean '{close[0]}'?)")
 
 
 class Values:

@@ -16,7 +16,6 @@
 A motion interrupted as a user meets it: killed, Ctrl-C, SIGTERM, its simulator restarted.
 
 Ctrl-C and SIGTERM come at every phase; a closed loop's simulator is killed, or restarted.
-
 Several scenarios run at once, each in its own ROS namespace.  Those on sim time share one
 simulator process, a robot each (its ``robots`` parameter), and its lockstep, with ``/clock``
 remapped into the simulator's namespace; a scenario whose simulator is killed has one of its
@@ -120,18 +119,15 @@ def at_rest_since(odoms):
     return odoms[last_moving + 1:]
 
 
-# What a motion says as it ends on each signal.
-ENDING = {signal.SIGINT: 'Interrupted by the user', signal.SIGTERM: 'Stopped by SIGTERM'}
-
-
 def check_clean_interrupt(proc, signum, problems, label):
     output = proc.output()
     if proc.poll() != 0:
         problems.append(f'{label}: exit code {proc.poll()}, expected 0\n{proc.describe()}')
     if 'Traceback' in output or 'Exception in' in output:
         problems.append(f'{label}: not a clean exit\n{proc.describe()}')
-    if ENDING[signum] not in output:
-        problems.append(f'{label}: no "{ENDING[signum]}"\n{proc.describe()}')
+    said = 'Stopped by SIGTERM' if signum == signal.SIGTERM else 'Interrupted by the user'
+    if said not in output:
+        problems.append(f'{label}: no "{said}"\n{proc.describe()}')
     if (late := (proc.running_at or 0.0) - proc.signalled_at) > 3.0:  # seen running: no lag
         problems.append(f'{label}: running {late:.1f} s after the signal\n{proc.describe()}')
 

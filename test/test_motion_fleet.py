@@ -169,7 +169,7 @@ def fleet_in(args):
                 node.destroy_node()
 
 
-def test_the_shipped_params_file_reaches_every_node_and_one_robots_section_only_it():
+def test_the_shipped_params_file_reaches_every_node_and_one_robots_section_only_it(capfd):
     with fleet_in(['--ros-args', '--params-file', str(CONFIG), '-p', 'pause:=0.25']) as (
             fleet, nodes):
         odom, timed, rotate = nodes
@@ -189,6 +189,8 @@ def test_the_shipped_params_file_reaches_every_node_and_one_robots_section_only_
         assert (odom.params.legs, timed.params.legs) == (1, 2)  # /**/odom_out_and_back
         assert (odom.params.pause, timed.params.pause) == (0.25, 0.25)  # -p: every node
         assert rotate.request == RotationRequest(90.0, 180.0, True)  # /robot3/rotate_robot
+        # What is given to every node (-p pause, /** use_sim_time) is no node's misspelling.
+        assert 'Ignoring parameter' not in capfd.readouterr().err
 
 
 @pytest.mark.parametrize('sim_time,fleet_takes_part,own', [

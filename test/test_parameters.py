@@ -66,6 +66,27 @@ def refusal(make_node, name, value, specs=TABLE):
     return message
 
 
+def test_a_parameter_spelt_like_one_of_the_nodes_is_warned_about_others_are_not(
+        make_node, capfd):
+    # rclpy ignores them all without a word; one like none of the node's is another node's
+    # (a params file's /** section, -p in a process of several nodes).
+    _, values = declare_with(make_node, ('sped', 1.0), ('rates', 5.0), ('speed', 1.5),
+                             ('linear_velocity', 1))
+    err = capfd.readouterr().err
+    assert ("Ignoring parameter 'sped': parameter_test has none by that name (did you mean "
+            "'speed'?)") in err
+    assert "Ignoring parameter 'rates'" in err and "(did you mean 'rate'?)" in err
+    assert 'linear_velocity' not in err and "'speed':" not in err
+    assert values.speed == 1.5
+
+
+def test_a_misspelt_simulator_parameter_is_warned_about_and_leaves_the_default(
+        make_node, capfd):
+    sim = make_node(node_class=UnicycleSim, cli_args=['--ros-args', '-p', 'initail_x:=1.0'])
+    assert "Ignoring parameter 'initail_x'" in capfd.readouterr().err
+    assert sim.params.initial_x == 0.0
+
+
 def test_defaults(make_node):
     node, values = declare_with(make_node)
     assert values.speed == 0.5

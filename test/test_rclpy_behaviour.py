@@ -15,6 +15,9 @@
 """
 The rclpy behaviours that sim_diffdrive/lockstep/counter.py relies on, pinned one by one.
 
+(And the one that sim_diffdrive/parameters.py relies on, the last test: where a node's
+overrides are.)
+
 MessageCounter wraps an existing node's entities by rebinding their attributes, and runs the
 calls of a sim-time timer that the EventsExecutor's duplicate timer events made rcl skip;
 nothing in rclpy's API promises what that needs.  These tests pin it as Jazzy's rclpy 7.1
@@ -190,4 +193,21 @@ def test_the_events_executor_duplicates_a_sim_time_timer_event(ros_context):
         assert timer.time_until_next_call() == 2 * _NS - 1  # due at 3 s: two periods on
     finally:
         executor.shutdown()
+        node.destroy_node()
+
+
+def test_a_nodes_given_parameters_are_in_its_parameter_overrides_declared_or_not(
+        ros_context, tmp_path):
+    # parameters.given_parameters reads them there: rclpy 7.1 has no public accessor.
+    params_file = tmp_path / 'params.yaml'
+    params_file.write_text('/**:\n  ros__parameters:\n    from_file: 1\n')
+    node = Node('given', context=ros_context, cli_args=[
+        '--ros-args', '-p', 'from_cli:=1', '--params-file', str(params_file)],
+        parameter_overrides=[Parameter('from_kwargs', value=1)])
+    try:
+        node.declare_parameter('from_cli', 0)
+        assert {'from_cli', 'from_file', 'from_kwargs'} <= set(node._parameter_overrides), (
+            "rclpy no longer keeps a node's overrides in Node._parameter_overrides: "
+            'parameters.given_parameters must read them elsewhere')
+    finally:
         node.destroy_node()
