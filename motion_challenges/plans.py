@@ -180,12 +180,6 @@ def out_and_back_plan(goal_distance, linear_speed, goal_angle, angular_speed, le
     return PiecewisePlan(leg * legs)
 
 
-def rotation_end(start, angle, clockwise):
-    """Return the pose (x, y, yaw) a turn by angle [rad] leads to from start (x, y, yaw)."""
-    x, y, yaw = start
-    return x, y, yaw - angle if clockwise else yaw + angle
-
-
 def out_and_back_end(start, goal_distance, goal_angle, legs):
     """Return the pose (x, y, yaw) the legs lead to from start (the start itself for pi x 2)."""
     x, y, yaw = start

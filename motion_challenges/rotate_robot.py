@@ -23,7 +23,6 @@ import sys
 
 from motion_challenges.controllers import SpinController
 from motion_challenges.motion_node import rate_spec
-from motion_challenges.plans import rotation_end
 from motion_challenges.plans import rotation_plan
 from motion_challenges.prompts import ask_rotation
 from motion_challenges.prompts import InputEnded
@@ -100,7 +99,7 @@ class RotateRobot(TimedMotion):
         return command
 
     def goal_pose(self, start):
-        return rotation_end((start.x, start.y, start.yaw), self.goal, self.request.clockwise)
+        return start.x, start.y, start.yaw + self.spin.sign * self.goal
 
     def summary(self, end_odom):
         goal_deg = self.spin.sign * self.request.angle_deg
