@@ -98,8 +98,7 @@ class CommandLog:
         return (linear, angular), (speed, turn_rate)
 
 
-def odometry_fault(last, pose, commands, tolerance=JUMP_TOLERANCE, velocity=(0.0, 0.0),
-                   accel=(0.0, 0.0)):
+def odometry_fault(last, pose, commands, velocity=(0.0, 0.0), accel=(0.0, 0.0)):
     """
     Return why odometry pose cannot follow odometry last, or '' when it can.
 
@@ -118,8 +117,8 @@ def odometry_fault(last, pose, commands, tolerance=JUMP_TOLERANCE, velocity=(0.0
     ahead = (pose.x - last.x) * math.cos(chord) + (pose.y - last.y) * math.sin(chord)
     # The robot may move and turn less than commanded (or not at all), but not more, nor the
     # other way.
-    if (moved > 1.5 * abs(metres) + tolerance
-            or not _within(ahead, metres, tolerance) or not _within(turned, radians, tolerance)):
+    if (moved > 1.5 * abs(metres) + JUMP_TOLERANCE or not _within(ahead, metres, JUMP_TOLERANCE)
+            or not _within(turned, radians, JUMP_TOLERANCE)):
         return (f'Odometry jumped {moved:.3f} m ({ahead:+.3f} m along the heading) and '
                 f'{math.degrees(abs(turned)):.1f} deg between two messages')
     return ''
@@ -171,19 +170,18 @@ class Approach:
     """
     Nav2 Spin's speed law toward a goal distance or angle (plans.approach_speed).
 
-    ``speed`` is None once less than tolerance remains; a min_speed above max_speed is taken
+    ``speed`` is None once less than TOLERANCE remains; a min_speed above max_speed is taken
     as max_speed.
     """
 
-    def __init__(self, max_speed, min_speed, accel, period, tolerance=TOLERANCE, robot_accel=0.0):
+    def __init__(self, max_speed, min_speed, accel, period, robot_accel=0.0):
         self.max_speed, self.min_speed = max_speed, min(min_speed, max_speed)
-        self.accel, self.period = accel, period
-        self.tolerance, self.robot_accel = tolerance, robot_accel
+        self.accel, self.period, self.robot_accel = accel, period, robot_accel
         # Refuse bad values now rather than on the first tick.
         approach_speed(1.0, self.max_speed, self.min_speed, accel, period)
 
     def speed(self, remaining, velocity=0.0):
-        if remaining <= self.tolerance:
+        if remaining <= TOLERANCE:
             return None
         return approach_speed(remaining, self.max_speed, self.min_speed, self.accel,
                               self.period, self.robot_accel, velocity)
@@ -197,11 +195,10 @@ class SpinController:
     ``turn_rate`` CommandLog.predict's yaw since that odometry and angular speed now.
     """
 
-    def __init__(self, goal, clockwise, max_speed, min_speed, accel, period,
-                 tolerance=TOLERANCE, robot_accel=0.0):
+    def __init__(self, goal, clockwise, max_speed, min_speed, accel, period, robot_accel=0.0):
         self.goal = goal
         self.sign = -1.0 if clockwise else 1.0
-        self.approach = Approach(max_speed, min_speed, accel, period, tolerance, robot_accel)
+        self.approach = Approach(max_speed, min_speed, accel, period, robot_accel)
 
     def progress(self, turned, predicted=0.0):
         """Return how far the robot has turned in the goal's direction [rad]."""
