@@ -21,6 +21,8 @@ Draw a motion's run to a PNG: its path beside heading and speeds (matplotlib, im
 from collections import namedtuple
 import math
 
+import numpy as np
+
 _NS = 1e9
 # Arrows of poses: a fraction of the path's extent, but never shorter than _MIN_ARROW [m], so
 # that a turn in place (a path that is a dot) still shows where the robot pointed.
@@ -54,11 +56,7 @@ RunSeries = namedtuple('RunSeries', [
 
 def unwrap_deg(yaws):
     """Return yaws [rad] as continuous degrees: no jump of 360 where the angle wraps."""
-    headings, last = [], None
-    for yaw in yaws:
-        last = yaw if last is None else last + math.remainder(yaw - last, 2.0 * math.pi)
-        headings.append(math.degrees(last))
-    return headings
+    return np.degrees(np.unwrap(yaws)).tolist()
 
 
 def step_series(times, values, end=None):
