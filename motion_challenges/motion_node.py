@@ -183,11 +183,10 @@ class MotionNode(Node):
         self.watch.start()
         self._tick_timer = self.create_timer(self.period, self._on_tick)
 
-    def finish(self, exit_code, message=None):
+    def finish(self, exit_code, message):
         self.stop_robot()
-        if message:
-            log = self.get_logger().info if exit_code == EXIT_OK else self.get_logger().error
-            log(message)
+        log = self.get_logger().info if exit_code == EXIT_OK else self.get_logger().error
+        log(message)
         self.state = MotionState.FINISHED
         self.watch.stop()
         self.exit_code = exit_code
