@@ -26,7 +26,7 @@ it waits for can never finish (its guard takes that mutex to count itself out), 
 threads queue up behind it, and ``destroy_node()`` spins at 100 % of a core, holding the GIL
 (eProsima/Fast-DDS#6513 is the same loop where the mutex is released, a spin but no hang).
 
-``release_participant(node)`` makes that call first, with a deadline that does not overflow:
+``release_participant(handle)`` makes that call first, with a deadline that does not overflow:
 it waits for the callbacks in flight the ordinary way (they take microseconds), and rmw's own
 call then finds nothing to wait for.  It is for a context about to go: without its listener,
 a context's graph (node names, publisher counts) no longer follows discovery.
@@ -76,38 +76,33 @@ def _loaded(soname):
 def _functions():
     """Return the three functions, or () where a library or symbol is not what it expects."""
     try:
-        return _find()
+        rmw_handle = _loaded('librcl.so').rcl_node_get_rmw_handle
+        rmw_handle.restype, rmw_handle.argtypes = ctypes.c_void_p, [ctypes.c_void_p]
+        participant = getattr(_loaded('librmw_fastrtps_cpp.so'), _GET_PARTICIPANT)
+        participant.restype, participant.argtypes = ctypes.c_void_p, [ctypes.c_void_p]
+        # The seconds, a trivially copyable one-integer class, travel by value in a register,
+        # and the ReturnCode_t, one 32-bit integer, comes back in one (x86-64 System V, AAPCS64).
+        set_listener = getattr(_loaded('libfastrtps.so.2.14'), _SET_LISTENER)
+        set_listener.restype = ctypes.c_uint32
+        set_listener.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int64]
     except (OSError, AttributeError):  # another Fast DDS build: rmw's own wait it is
         return ()
-
-
-def _find():
-    rmw_handle = _loaded('librcl.so').rcl_node_get_rmw_handle
-    rmw_handle.restype, rmw_handle.argtypes = ctypes.c_void_p, [ctypes.c_void_p]
-    participant = getattr(_loaded('librmw_fastrtps_cpp.so'), _GET_PARTICIPANT)
-    participant.restype, participant.argtypes = ctypes.c_void_p, [ctypes.c_void_p]
-    # The seconds, a trivially copyable one-integer class, travel by value in a register, and
-    # the ReturnCode_t, one 32-bit integer, comes back in one (x86-64 System V and AAPCS64).
-    set_listener = getattr(_loaded('libfastrtps.so.2.14'), _SET_LISTENER)
-    set_listener.restype = ctypes.c_uint32
-    set_listener.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int64]
     return rmw_handle, participant, set_listener
 
 
-def release_participant(node):
+def release_participant(handle):
     """
-    Detach the discovery listener of node's DDS participant, after its callbacks in flight.
+    Detach the discovery listener of a node's DDS participant, after its callbacks in flight.
 
-    node is an rclpy Node, or the rclpy implementation's node handle; its context's nodes are
-    about to be destroyed.  Return whether there was a listener to detach: False under another
-    RMW than rmw_fastrtps_cpp, or with a Fast DDS whose library does not have the call (rmw
-    then detaches it as it always does).  ctypes lets the GIL go while it waits.
+    handle is the rclpy implementation's node (an rclpy Node's ``handle``); its context's nodes
+    are about to be destroyed.  Return whether there was a listener to detach: False under
+    another RMW than rmw_fastrtps_cpp, or with a Fast DDS whose library does not have the call
+    (rmw then detaches it as it always does).  ctypes lets the GIL go while it waits.
     """
     functions = _functions() if get_rmw_implementation_identifier() == 'rmw_fastrtps_cpp' else ()
     if not functions:
         return False
     rmw_handle, participant, set_listener = functions
-    handle = getattr(node, 'handle', node)
     with handle:  # the node, and so its participant, cannot go meanwhile
         rmw_node = rmw_handle(handle.pointer)
         dds_participant = participant(rmw_node) if rmw_node else None
