@@ -88,8 +88,8 @@ def destroyed_if_refused(node):
 
 
 def spin_until_done(executor, nodes, interrupts):
-    """Spin until every node (one or a sequence) with a ``done`` attribute is done, or stopped."""
-    waiting = [node for node in _as_list(nodes) if hasattr(node, 'done')]
+    """Spin until every node with a ``done`` attribute is done, or the run is stopped."""
+    waiting = [node for node in nodes if hasattr(node, 'done')]
     interrupts.deferred = True
     while executor.context.ok() and not (waiting and all(n.done for n in waiting)):
         executor.spin_once(timeout_sec=_SPIN_TIMEOUT)
@@ -99,7 +99,7 @@ def spin_until_done(executor, nodes, interrupts):
 
 def worst_exit_code(nodes):
     """Return the largest ``exit_code`` among the nodes that have one (0 when none has)."""
-    codes = [getattr(node, 'exit_code', None) for node in _as_list(nodes)]
+    codes = [getattr(node, 'exit_code', None) for node in nodes]
     return max((code for code in codes if code is not None), default=EXIT_OK)
 
 
@@ -134,7 +134,8 @@ def run(make_node, args=None, name='motion_challenges'):
         # The DDS participant outlives every node, even one refused while it is built, and goes
         # last, the safe way (sim_diffdrive/dds_teardown.py).
         hold = ParticipantHold(rclpy.get_default_context())
-        nodes = _as_list(make_node())
+        built = make_node()
+        nodes = list(built) if isinstance(built, (list, tuple)) else [built]
         if len(nodes) == 1:
             logger = nodes[0].get_logger()
         executor = EventsExecutor()
@@ -183,10 +184,6 @@ def run(make_node, args=None, name='motion_challenges'):
             rclpy.try_shutdown()
             faulthandler.cancel_dump_traceback_later()
     return exit_code
-
-
-def _as_list(nodes):
-    return list(nodes) if isinstance(nodes, (list, tuple)) else [nodes]
 
 
 def _cleaned(call, what, logger):
