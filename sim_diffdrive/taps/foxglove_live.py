@@ -20,8 +20,6 @@ and, without /tf, ``/foxglove/odom_transform`` carries the odometry.  The server
 authentication, so it listens on 127.0.0.1 only.
 """
 
-import time
-
 from nav_msgs.msg import Odometry
 from nav_msgs.msg import Path
 from rclpy.serialization import serialize_message
@@ -72,7 +70,7 @@ class FoxgloveLive:
         self._scene = channels.SceneUpdateChannel(SCENE_TOPIC, context=self._context)
         self._transforms = None if node.params.publish_tf else channels.FrameTransformsChannel(
             TRANSFORM_TOPIC, context=self._context)
-        self._scene_walls = {}  # robot frame -> when its scene entity was last sent [monotonic]
+        self._scene_throttle = Throttle(SCENE_PERIOD_S)  # each robot's scene entity, by frame
         self._path_throttle = Throttle(PATH_PERIOD_S)
         node.get_logger().info(f'Foxglove: {self.url} (Open connection in Foxglove)')
 
@@ -110,7 +108,7 @@ class FoxgloveLive:
         transforms = self._transforms is not None and self._transforms.has_sinks()
         scene = self._scene.has_sinks()
         if not scene:
-            self._scene_walls.clear()  # a new subscriber gets every robot at once
+            self._scene_throttle = Throttle(SCENE_PERIOD_S)  # a new subscriber gets every robot
             if not transforms:
                 return  # nobody looks: the bytes need not be read
         frame, child_frame, p, q = _odometry_fields(odom)
@@ -119,13 +117,8 @@ class FoxgloveLive:
                 timestamp=_timestamp(m, stamp_ns), parent_frame_id=frame,
                 child_frame_id=child_frame, translation=m.Vector3(x=p[0], y=p[1], z=p[2]),
                 rotation=m.Quaternion(x=q[0], y=q[1], z=q[2], w=q[3]))]), log_time=stamp_ns)
-        if not scene:
-            return
-        now = time.monotonic()
-        if now - self._scene_walls.get(child_frame, -SCENE_PERIOD_S) < SCENE_PERIOD_S:
-            return
-        self._scene_walls[child_frame] = now
-        self._scene.log(robot_scene(m, child_frame, stamp_ns), log_time=stamp_ns)
+        if scene and self._scene_throttle.allows(child_frame):
+            self._scene.log(robot_scene(m, child_frame, stamp_ns), log_time=stamp_ns)
 
 
 def _odometry_fields(odom):
