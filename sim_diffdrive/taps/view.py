@@ -80,8 +80,10 @@ class BrowserView:
         import rerun as rr
         program = rerun_program()
         self._rr = rr
-        self._process = self._page = self._rec = self._thread = None
-        self._home = tempfile.mkdtemp(prefix='unicycle_sim_view_')
+        self._thread = None
+        self._closing = contextlib.ExitStack()  # what close() stops, the last made first
+        self._home = self._closing.enter_context(tempfile.TemporaryDirectory(
+            prefix='unicycle_sim_view_', ignore_cleanup_errors=True))
         self._sim_clock = node.params.publish_clock or node.get_parameter('use_sim_time').value
         self._lock = threading.Lock()
         self._stop = threading.Event()
@@ -101,9 +103,13 @@ class BrowserView:
             self._page = ViewerPage(host, port, files_port, [
                 f'http://{name}:{grpc_port}' for name in (host, 'localhost')],
                 (run.hex, self.grpc_url))
+            self._closing.callback(self._page.close)
             self._process = self._start_rerun(program, host, grpc_port, files_port)
+            self._closing.callback(_stop, self._process)
             self.url = page_url(self._page.port, self.grpc_url)
             self._rec = rr.RecordingStream('unicycle_sim', recording_id=run)
+            self._closing.callback(self._rec.disconnect)
+            self._closing.callback(self._rec.flush, timeout_sec=1.0)
             # Simulated time only: a wall-clock timeline would only show the frames' latency.
             rr.set_log_time_enabled(False, recording=self._rec)
             self._rec.connect_grpc(self.grpc_url,
@@ -276,19 +282,7 @@ class BrowserView:
                         # the steps (and the scan) since the last frame
                         self._log(self._frames.take(), self._take_scan())
         finally:
-            rec, self._rec = self._rec, None
-            if rec is not None:
-                rec.flush(timeout_sec=1.0)
-                rec.disconnect()
-            page, self._page = self._page, None
-            if page is not None:
-                page.close()
-            process, self._process = self._process, None
-            if process is not None:
-                _stop(process)
-            home, self._home = self._home, None
-            if home is not None:
-                shutil.rmtree(home, ignore_errors=True)
+            self._closing.close()
             atexit.unregister(self.close)
 
 
