@@ -162,18 +162,17 @@ def run(make_node, args=None, name='motion_challenges'):
         try:
             # Every hook first (the motions' final stops, while a simulator in the same
             # process still runs), then every node is destroyed.
-            hooks_ok = [_run_shutdown_hook(node, node.get_logger()) for node in nodes]
+            hooks_ok = [_cleaned(getattr(node, 'shutdown_hook', lambda: None), 'shutdown_hook',
+                                 node.get_logger(), '; the robot may not have been told to stop')
+                        for node in nodes]
             if not all(hooks_ok):
                 exit_code = EXIT_FAILED
             # The executor lets go of the nodes' entities before they are destroyed, not after
             # rclpy's shutdown, where a QoS event handler can crash (rclpy issue 1644).  The
             # watchdog is faulthandler's thread: it needs no GIL, which a spinning call holds.
             faulthandler.dump_traceback_later(CLEANUP_TIMEOUT_S, exit=True)
-            try:
-                if executor is not None:
-                    executor.shutdown()
-            except (Exception, KeyboardInterrupt) as error:  # logged; the cleanup goes on
-                logger.error(f'Executor shutdown failed ({type(error).__name__}: {error})')
+            if executor is not None:  # a failure is logged and does not fail the run
+                _cleaned(executor.shutdown, 'Executor shutdown', logger)
             cleaned = [_cleaned(node.destroy_node, 'destroy_node', node.get_logger())
                        for node in nodes]
             if hold is not None:
@@ -186,25 +185,14 @@ def run(make_node, args=None, name='motion_challenges'):
     return exit_code
 
 
-def _cleaned(call, what, logger):
-    """Call call(); return False when it failed (logged as what), so the cleanup goes on."""
+def _cleaned(call, what, logger, consequence=''):
+    """Call call(); return False when it failed (logged: what, consequence); cleanup goes on."""
     try:
         call()
-    except Exception as error:
-        logger.error(f'{what} failed ({type(error).__name__}: {error})')
-        return False
-    return True
-
-
-def _run_shutdown_hook(node, logger):
-    """Call the node's shutdown_hook, if any; return False when it failed (it is logged)."""
-    try:
-        getattr(node, 'shutdown_hook', lambda: None)()
     except KeyboardInterrupt:
-        # A second Ctrl-C during the final stop must not skip the cleanup after it.
+        # A second Ctrl-C during the final stop must not skip the rest of the cleanup.
         pass
     except Exception as error:
-        logger.error(f'shutdown_hook failed ({type(error).__name__}: {error}); the robot '
-                     'may not have been told to stop')
+        logger.error(f'{what} failed ({type(error).__name__}: {error}){consequence}')
         return False
     return True
