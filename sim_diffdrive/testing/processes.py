@@ -172,12 +172,7 @@ def start_python(code, log_path=None):
 
 def stop(process, signum=signal.SIGINT, timeout=5.0):
     """Send signum (Ctrl-C) unless it has exited, kill it after timeout; return its output."""
-    if process.poll() is None:
-        process.send(signum)
-        with contextlib.suppress(subprocess.TimeoutExpired):
-            process.wait(timeout)
-    process.kill()
-    return process.output()
+    return stop_all([process], signum, timeout)[0]
 
 
 def stop_all(processes, signum=signal.SIGINT, timeout=5.0):
