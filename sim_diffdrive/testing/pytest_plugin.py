@@ -25,8 +25,5 @@ import pytest
 def sim_graph():
     """Yield a SimGraph (own context, isolated domain); close it and shut down afterwards."""
     from sim_diffdrive.testing.graph import SimGraph
-    graph = SimGraph()
-    try:
+    with SimGraph() as graph:
         yield graph
-    finally:
-        graph.close()
