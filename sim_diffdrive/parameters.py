@@ -176,7 +176,7 @@ def declare(node, specs, on_change=None):
     if live:
         _LiveParameters(node, live, on_change)
     _clock_chosen_at_start(node)
-    _warn_misspelt(node, specs)
+    _warn_misspelt(node)
     return Values(node, specs)
 
 
@@ -190,7 +190,7 @@ def given_parameters(node):
     return tuple(getattr(node, '_parameter_overrides', {}))
 
 
-def _warn_misspelt(node, specs):
+def _warn_misspelt(node):
     """
     Warn about each parameter given to node that it has not, but has one spelt much like it.
 
@@ -198,7 +198,7 @@ def _warn_misspelt(node, specs):
     would start the robot at 0.  A name like none of node's is not warned about: a params file's
     ``/**`` section, or ``-p`` in a process of several nodes, gives every node the others' too.
     """
-    names = [spec.name for spec in specs]
+    names = list(node.get_parameters_by_prefix(''))  # use_sim_time and the specs' names
     for name in given_parameters(node):
         close = difflib.get_close_matches(name, names, n=1, cutoff=0.8)
         if close and not node.has_parameter(name):

@@ -82,8 +82,11 @@ def test_a_parameter_spelt_like_one_of_the_nodes_is_warned_about_others_are_not(
 
 def test_a_misspelt_simulator_parameter_is_warned_about_and_leaves_the_default(
         make_node, capfd):
-    sim = make_node(node_class=UnicycleSim, cli_args=['--ros-args', '-p', 'initail_x:=1.0'])
-    assert "Ignoring parameter 'initail_x'" in capfd.readouterr().err
+    sim = make_node(node_class=UnicycleSim, cli_args=[
+        '--ros-args', '-p', 'initail_x:=1.0', '-p', 'use_sim_tme:=true'])
+    err = capfd.readouterr().err
+    assert "Ignoring parameter 'initail_x'" in err
+    assert "Ignoring parameter 'use_sim_tme'" in err and "(did you mean 'use_sim_time'?)" in err
     assert sim.params.initial_x == 0.0
 
 
