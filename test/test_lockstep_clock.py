@@ -21,12 +21,17 @@ from geometry_msgs.msg import Twist
 from motion_challenges.rotate_robot import RotateRobot
 from nav_msgs.msg import Odometry
 import pytest
+import rclpy
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 from rclpy.serialization import deserialize_message
 from rclpy.serialization import serialize_message
 from sim_diffdrive.cdr import read_string
 from sim_diffdrive.cdr import string_message
+from sim_diffdrive.dds_teardown import held_context
+from sim_diffdrive.harness import isolated_domain_id
 from sim_diffdrive.lockstep.counter import MessageCounter
+from sim_diffdrive.lockstep.participant import ANSWER_QOS
 from sim_diffdrive.lockstep.participant import take_part
 from sim_diffdrive.sim import clock as clock_module
 from std_msgs.msg import String
@@ -104,3 +109,26 @@ def test_the_simulator_says_it_has_heard_no_stamped_command_yet_for_good(graph):
     counter = MessageCounter.of(sim, '/clock')
     assert counter.heard_stamp == {'/cmd_vel': -1, '/initialpose': -1}
     assert counter.unheard_s == math.inf
+
+
+def test_leave_after_rclpy_shut_down_says_it_could_not_and_raises_nothing():
+    # rclpy's default SIGINT handler shuts the context down before a program's `finally:
+    # lockstep.leave()` runs (docs/time.md's example, Ctrl-C); leave() then raised RCLError.
+    with held_context(domain_id=isolated_domain_id()) as context:
+        node = Node('leaving', context=context,
+                    parameter_overrides=[Parameter('use_sim_time', value=True)])
+        owner = Node('owner', context=context)
+        owner.create_subscription(String, '/clock/answers', lambda msg: None, ANSWER_QOS)
+        lockstep = take_part(node)
+        member = lockstep.add(Node('other', context=context, parameter_overrides=[
+            Parameter('use_sim_time', value=True)]))
+        deadline = time.monotonic() + 10.0
+        while lockstep._publisher.get_subscription_count() == 0:
+            assert time.monotonic() < deadline, 'the answer topic never matched'
+            time.sleep(0.01)
+        lockstep.answer()  # it has said something: leave() owes a goodbye
+        rclpy.shutdown(context=context)
+        assert member.leave() is False
+        assert lockstep.leave() is False and lockstep.left
+        for each in (member.node, node, owner):
+            each.destroy_node()

@@ -207,9 +207,14 @@ class Participant:
         """
         acknowledged = True
         if self._last is not None and not self.left:
-            self.answer(leaving=True)
-            if ack_timeout > 0.0:
-                acknowledged = self.wait_acknowledged(ack_timeout)
+            if not self.node.context.ok():
+                # rclpy is shut down (by its own SIGINT handler, say): no goodbye can go, and the
+                # simulator goes on without this participant after its lockstep_timeout.
+                acknowledged = False
+            else:
+                self.answer(leaving=True)
+                if ack_timeout > 0.0:
+                    acknowledged = self.wait_acknowledged(ack_timeout)
         self.left = True
         return acknowledged
 
@@ -227,6 +232,8 @@ class Participant:
             self._active -= 1
         if not self._active:
             return self.leave(ack_timeout)
+        if not self.node.context.ok():
+            return False  # rclpy is shut down: nothing can be said any more
         if self.settled():
             self.answer()  # its last messages: what the simulator waits for now
         return self.wait_acknowledged(ack_timeout) if ack_timeout > 0.0 else True
