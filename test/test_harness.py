@@ -24,6 +24,7 @@ import time
 from geometry_msgs.msg import Twist
 import pytest
 import rclpy
+from rclpy.node import Node
 from sim_diffdrive.dds_teardown import held_context
 from sim_diffdrive.harness import kill_all
 from sim_diffdrive.harness import Process
@@ -225,6 +226,24 @@ def test_one_stepped_simulator_per_graph_and_it_owns_the_clock(graph):
     with pytest.raises(ValueError, match='publish_clock true'):
         graph.sim(publish_clock=False)
     graph.sim(stepped=False, publish_clock=False)  # on someone else's clock: fine
+
+
+def test_a_graphs_mistakes_are_named(graph, capfd):
+    # What a newcomer met: a misspelt simulator parameter passed without a word, a step before
+    # sim() an AttributeError, a bare timeout, a node on wall time that never moved the robot.
+    with pytest.raises(TypeError, match="'initail_x'.*did you mean 'initial_x'"):
+        graph.sim(initail_x=1.0)
+    with pytest.raises(RuntimeError, match='start a simulator with sim'):
+        graph.step_for(1.0)
+    graph.sim()
+    wall = graph.add(Node('on_wall_time', context=graph.context))
+    wall.create_timer(0.1, lambda: None)
+    with pytest.raises(RuntimeError, match=r'within 0.5 s of simulated time \(now t=0.500 s\)'):
+        graph.step_until(lambda: False, sim_timeout=0.5)
+    err = capfd.readouterr().err
+    assert 'On wall time (use_sim_time is false) in a SimGraph' in err
+    assert 'publishing /clock as its caller steps it' in err  # not 'at up to 10x (free clock)'
+    assert err.count('On wall time') == 1  # the graph's own nodes are on sim time
 
 
 def test_waiting_for_odometry_that_never_comes_says_so_with_the_process_log(graph):

@@ -187,8 +187,9 @@ class UnicycleSim(Node):
                  f'Unicycle at ({p.initial_x:.3f}, {p.initial_y:.3f}, {p.initial_yaw:.3f} rad)')
         self.get_logger().info(
             f'{where}, odom at {p.rate_hz:g} Hz, cmd_vel timeout {p.cmd_vel_timeout:g} s'
-            + (f', publishing /clock at up to {p.real_time_factor:g}x real time'
-               + (' in lockstep' if p.lockstep else ' (free clock)')
+            + ((', publishing /clock as its caller steps it' if stepped else
+                f', publishing /clock at up to {p.real_time_factor:g}x real time'
+                + (' in lockstep' if p.lockstep else ' (free clock)'))
                if p.publish_clock else '')
             + (f'; in the map {p.map_file} ({self.surroundings.grid.width} x '
                f'{self.surroundings.grid.height} cells of {self.surroundings.grid.resolution:g} '

@@ -22,6 +22,7 @@ due, so an answer lands on its step whatever the machine's load.
 
 import collections
 import contextlib
+import difflib
 import fcntl
 import itertools
 import os
@@ -39,6 +40,7 @@ from sim_diffdrive.lockstep.counter import MessageCounter
 from sim_diffdrive.lockstep.handshake import Answer
 from sim_diffdrive.lockstep.handshake import StepLedger
 from sim_diffdrive.sim.clock import SteppedClock
+from sim_diffdrive.sim.node import PARAMETERS
 from sim_diffdrive.sim.node import UnicycleSim
 from sim_diffdrive.testing.probe import pose_of
 from sim_diffdrive.testing.probe import Probe
@@ -53,6 +55,7 @@ DOMAIN_BLOCK = 4
 # Where runs lock their blocks of domains: one place for the whole machine.
 DOMAIN_LOCKS = '/tmp/sim_graph_domains'
 _claims = []  # the lock files (descriptors) this process holds (claim_domains)
+_SIM_PARAMETERS = [spec.name for spec in PARAMETERS] + ['use_sim_time']
 
 
 class Lockstep:
@@ -166,6 +169,8 @@ class Lockstep:
             counter.wrap_new()  # entities made since it was last looked at
             answer = self._answers.get(node)
             if answer is None:  # it joins
+                if node is not self.clock_owner:
+                    _warn_if_on_wall_time(node)
                 name = node.get_fully_qualified_name()
                 answer = self._answers[node] = Answer(f'{name}#{next(self._ids)}', name, now_ns,
                                                       counter.sent, counter.heard)
@@ -201,10 +206,16 @@ class Lockstep:
 
     @property
     def step_ns(self):
-        return round(_NS / self.clock_owner.params.rate_hz)
+        return round(_NS / self._stepped().params.rate_hz)
+
+    def _stepped(self):
+        if self.clock_owner is None:
+            raise RuntimeError('nothing to step: start a simulator with sim() first')
+        return self.clock_owner
 
     def step(self, steps=1, timeout=10.0):
         """Advance simulated time by whole steps, settling after each (what was sent first)."""
+        self._stepped()
         if not self._discovered:
             self.wait_for_discovery()
         now_ns = self.clock_owner.now_ns()
@@ -225,7 +236,8 @@ class Lockstep:
         end_ns = self.now_ns + round(sim_timeout * _NS)
         while not predicate():
             if self.now_ns >= end_ns:
-                raise RuntimeError('condition not reached in simulated time')
+                raise RuntimeError(f'condition not reached within {sim_timeout:g} s of '
+                                   f'simulated time (now t={self.now_ns / _NS:.3f} s)')
             self.step()
 
     def step_for(self, seconds):
@@ -317,6 +329,11 @@ class SimGraph(Lockstep):
 
     def sim(self, stepped=True, **params):
         """Start a simulator with any of unicycle_sim's params; the graph steps it if stepped."""
+        for name in params:
+            if name not in _SIM_PARAMETERS:
+                close = difflib.get_close_matches(name, _SIM_PARAMETERS, n=1)
+                raise TypeError(f'sim() got {name!r}, which is not a parameter of unicycle_sim'
+                                + (f' (did you mean {close[0]!r}?)' if close else ''))
         params.setdefault('publish_clock', stepped)
         if stepped and (not params['publish_clock'] or self.clock_owner is not None):
             raise ValueError('a stepped simulator owns the clock: one per graph, with '
@@ -407,3 +424,12 @@ class SimGraph(Lockstep):
 
 def _overrides(params):
     return [Parameter(name, value=value) for name, value in params.items()]
+
+
+def _warn_if_on_wall_time(node):
+    """Warn about a node whose timers run on wall time: the graph's steps do not pace them."""
+    if node.timers and not node.get_parameter('use_sim_time').value:
+        node.get_logger().warning(
+            'On wall time (use_sim_time is false) in a SimGraph: its timers do not follow the '
+            "graph's steps; build it with parameter_overrides=sim_time_params(), or add it "
+            'with node()')
