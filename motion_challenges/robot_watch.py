@@ -259,7 +259,9 @@ class RobotWatch:
                     'start_timeout; a process killed while it ran on this machine can leave '
                     'it deaf to new ones: restart it).' if 'lockstep' in missing else
                     'is the robot (or unicycle_sim) running?')
-            node.finish(EXIT_FAILED, f'Gave up after {waited:.1f} s waiting for {missing}; '
+            # The start_timeout given, not the watchdog's moment (up to WATCHDOG_PERIOD_S on).
+            node.finish(EXIT_FAILED, f'Gave up after start_timeout '
+                                     f'({node.params.start_timeout:g} s) waiting for {missing}; '
                                      f'{hint} Nothing moved.')
         elif self._waiting_log.allows():
             node.get_logger().info(f'Waiting for {missing} ...')

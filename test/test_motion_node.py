@@ -56,7 +56,7 @@ def test_start_timeout_does_not_count_the_time_spent_typing(graph):
     assert angle_error(graph.pose()[2], math.radians(45.0)) < 1e-9
 
 
-def test_without_a_robot_it_gives_up_start_timeout_after_the_answers(graph):
+def test_without_a_robot_it_gives_up_start_timeout_after_the_answers(graph, capfd):
     node = rotate_robot(graph, start_timeout=START_TIMEOUT)
     time.sleep(TYPING_S)
     started = time.monotonic()
@@ -68,6 +68,9 @@ def test_without_a_robot_it_gives_up_start_timeout_after_the_answers(graph):
     # Counted from the answers, not from the node's start (then it would have given up
     # TYPING_S sooner).  How late after that the watchdog notices is load, not behaviour.
     assert waited >= START_TIMEOUT
+    # It says the timeout it was given (a newcomer read 'Gave up after 2.5 s' for 2.0).
+    said = f'Gave up after start_timeout ({START_TIMEOUT:g} s) waiting for'
+    assert said in capfd.readouterr().err
 
 
 def test_a_simulator_in_lockstep_that_never_takes_it_in_is_named_not_taken_for_absent(
