@@ -22,6 +22,7 @@ from motion_challenges.rotate_robot import RotateRobot
 from nav_msgs.msg import Odometry
 import pytest
 import rclpy
+from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.serialization import deserialize_message
@@ -132,3 +133,31 @@ def test_leave_after_rclpy_shut_down_says_it_could_not_and_raises_nothing():
         assert lockstep.leave() is False and lockstep.left
         for each in (member.node, node, owner):
             each.destroy_node()
+
+
+def test_a_node_whose_simulator_stops_listening_says_so_once(capfd):
+    # A newcomer's node waited for ever, silent, after its simulator was stopped.
+    with held_context(domain_id=isolated_domain_id()) as context:
+        node = Node('waiting', context=context,
+                    parameter_overrides=[Parameter('use_sim_time', value=True)])
+        owner = Node('owner', context=context)
+        owner.create_subscription(String, '/clock/answers', lambda msg: None, ANSWER_QOS)
+        lockstep = take_part(node)
+        executor = SingleThreadedExecutor(context=context)
+        executor.add_node(node)
+
+        def spin_until(done):
+            deadline = time.monotonic() + 10.0
+            while not done() and time.monotonic() < deadline:
+                executor.spin_once(timeout_sec=0.01)
+            return done()
+        assert spin_until(lambda: lockstep._owner_listening)  # as DDS told it
+        assert 'no longer listens' not in capfd.readouterr().err
+        owner.destroy_node()
+        err = []  # stderr as it comes
+        assert spin_until(
+            lambda: err.append(capfd.readouterr().err) or 'no longer' in ''.join(err))
+        assert ("Lockstep: the simulator no longer listens for this node's answers (was it "
+                'stopped?)') in ''.join(err)
+        executor.shutdown()
+        node.destroy_node()

@@ -26,6 +26,7 @@ import uuid
 
 from rclpy.clock import ClockType
 from rclpy.duration import Duration
+from rclpy.event_handler import PublisherEventCallbacks
 from rclpy.executors import MultiThreadedExecutor
 from rclpy.qos import DurabilityPolicy
 from rclpy.qos import QoSProfile
@@ -65,7 +66,12 @@ class Participant:
         self.dropped_ns = None
         self._clock_topic = clock_topic(node)
         self._answer_topic = answer_topic(self._clock_topic)
-        self._publisher = node.create_publisher(String, self._answer_topic, ANSWER_QOS)
+        # DDS says when the simulator's answer reader goes: a node whose simulator was
+        # stopped waits for /clock, and says why once.
+        self._owner_listening = False
+        self._publisher = node.create_publisher(
+            String, self._answer_topic, ANSWER_QOS,
+            event_callbacks=PublisherEventCallbacks(matched=self._on_owner_matched))
         node.create_subscription(String, roster_topic(self._clock_topic), self._on_roster,
                                  ROSTER_QOS)
         # Every node answered for, with its counter; the clock time each is settled at (None:
@@ -291,6 +297,13 @@ class Participant:
         if settled_ns is not None:
             self._settled_at[settled_ns] = self._settled_at.get(settled_ns, 0) + 1
         state.settled_ns = settled_ns
+
+    def _on_owner_matched(self, info):
+        listening, self._owner_listening = self._owner_listening, info.current_count > 0
+        if listening and not self._owner_listening and not self.left:
+            self.node.get_logger().warning(
+                f'Lockstep: {self.owner or "the simulator"} no longer listens for this '
+                "node's answers (was it stopped?); simulated time waits for it or another")
 
     def _on_roster(self, msg):
         try:
