@@ -174,6 +174,33 @@ def test_beams_along_grid_lines_from_grid_points_give_no_nan(room):
     assert ranges[2, 4] == pytest.approx(0.1, abs=EXACT)  # to the bottom wall's face y = 0.1
 
 
+def test_beams_along_a_grid_line_from_a_rounding_error_off_it_equal_the_slab_oracle(room):
+    # 0.3 / 0.1 is 2.9999999999999996: a scanner there is on the line y = 0.3 within SNAP, and
+    # its beam at -pi has a y component of -1.2e-16.  The crossing of that line came out 0.45 m
+    # behind it, where the right wall is: the beam read 0 (-inf in a scan), with nothing near.
+    # Scanners along the lines y = 0.3 and 0.8, then x = 0.3, 0.7 and 0.8 (k * 0.1 / 0.1 is a
+    # rounding error below k or above it), between cell faces (a beam along a face stops at
+    # its corner, where the oracle's slab misses it), none in a wall.
+    along = np.arange(0.15, 1.1, 0.1)
+    gx = np.concatenate([np.tile(along, 2), np.repeat([0.3, 0.7, 0.8], along.size)])
+    gy = np.concatenate([np.repeat([0.3, 0.8], along.size), np.tile(along, 3)])
+    clear = ~((gx > 0.45) & (gx < 0.65) & (gy > 0.35) & (gy < 0.75)) & (gy < 0.9)
+    gx, gy = gx[clear], gy[clear]
+    angles = np.array([-math.pi, math.pi, -math.pi / 2, math.pi / 2, 0.0])
+    ranges = cast(room, gx, gy, np.zeros(gx.size), angles, 5.0)
+    expected = slab(gx[:, None], gy[:, None], angles[None, :])
+    np.testing.assert_allclose(ranges, expected, rtol=0, atol=EXACT)
+
+
+def test_a_users_corridor_reads_its_wall_not_minus_inf():
+    # As a user met it: (0.05 + 2.0) / 0.05 is 40.99999999999999, and the beam behind the
+    # robot read 0 (-inf in its scan) instead of the wall 1.3 m behind it.
+    grid = GridMap.from_rows(['####' + '.' * 96 + '#' * 20] * 100, resolution=0.05,
+                             origin=(-1.0, -2.0, 0.0))  # free from x = -0.8 to 4.0
+    ranges = cast(grid, [0.5, 0.5], [0.05, 0.05], [0.0, math.pi], [-math.pi, 0.0], 5.0)
+    np.testing.assert_allclose(ranges, [[1.3, 3.5], [3.5, 1.3]], rtol=0, atol=EXACT)
+
+
 def test_inside_a_wall_is_zero_and_outside_the_map_is_free(room):
     assert (cast(room, [0.05], [0.5], [0.3], beam_angles(36), 5.0) == 0.0).all()
     # From outside the map: towards it, the left wall's outer face x = 0; away, nothing.

@@ -115,7 +115,10 @@ class _Lines:
         self.inc = self.step * stride_a
         self.along = np.where(da == 0.0, 1.0, da)
         self.never = da == 0.0
-        t0 = (self.first * res - ga) / self.along
+        # A line within SNAP behind the ray (snapped to, as the one it starts on) is crossed
+        # where it starts: divided by a component as small as 1e-16 (a beam along the line),
+        # that rounding error would put the crossing metres behind it.
+        t0 = np.maximum((self.first * res - ga) / self.along, 0.0)
         self.b0 = (gb + t0 * db) / res + (1.0 + SNAP)  # padded b at crossing 0, plus SNAP
         self.db = np.where(self.never, 0.0, db) * self.step / self.along  # b per crossing
 
