@@ -366,7 +366,9 @@ def parameter_table():
             return value or "''"
         return repr(value)
 
-    def number(value):
+    def number(value):  # an integer bound as the refusal words it (2147483647, not 2.14748e9)
+        if isinstance(value, int):
+            return str(value)
         return f'{value:g}'.replace('e+0', 'e').replace('e+', 'e')
 
     rows = [TABLE_START, '| parameter | default | valid values | meaning |', '|---|---|---|---|']

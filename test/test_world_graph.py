@@ -150,7 +150,7 @@ def test_a_robot_on_an_arc_stops_where_its_arc_meets_the_wall(graph):
     assert twist_of(graph.odom()) == (0.0, 0.0)
 
 
-def test_two_robots_see_each_other_and_stop_on_contact(graph):
+def test_two_robots_see_each_other_and_stop_on_contact(graph, capfd):
     graph.sim(map_file=ROOM, robots=['a', 'b'], cmd_vel_timeout=0.0,
               initial_poses=[0.3, 1.0, 0.0, 1.3, 1.0, math.pi])
     graph.step_for(0.2)
@@ -163,6 +163,18 @@ def test_two_robots_see_each_other_and_stop_on_contact(graph):
     assert graph.pose('a')[0] == pytest.approx(1.3 - 2 * RADIUS, abs=1e-6)
     assert graph.pose('b')[0] == 1.3
     assert twist_of(graph.odom('a')) == (0.0, 0.0)
+    err = capfd.readouterr().err  # who drove into whom: b stood still
+    assert 'a: Ran into b at (1.090, 1.000) in map: stopped' in err
+    assert 'b: Was run into by a at (1.300, 1.000) in map: stopped' in err
+
+
+def test_a_robot_started_outside_the_map_is_warned_about(graph, capfd):
+    # A wrong origin in a map's YAML is the classic mistake: nothing stops or scans out there.
+    graph.sim(map_file=ROOM, robots=['a', 'b'], initial_poses=[0.5, 0.3, 0.0, 1.0, -10.0, 0.0])
+    err = capfd.readouterr().err
+    assert ('b: Starts at (1.000, -10.000) in map, outside the map (80 x 60 cells from its '
+            'origin): no wall or scan return out there') in err
+    assert 'a: Starts' not in err
 
 
 def test_initialpose_in_the_map_moves_map_to_odom_and_keeps_odometry_continuous(graph):

@@ -166,6 +166,8 @@ class UnicycleSim(Node):
         except PlacementError as error:
             raise ParameterError(f'Cannot start: {error} (initial_x, initial_y, initial_poses '
                                  'or map_file)') from None
+        if self.surroundings:
+            self._say_who_is_outside_the_map(names)
         self.step_ns = round(_NS / p.rate_hz)
         self.clock = make_clock(self, stepped)
         self.taps = open_taps(self)
@@ -195,6 +197,16 @@ class UnicycleSim(Node):
                f'{self.surroundings.grid.height} cells of {self.surroundings.grid.resolution:g} '
                f'm), scans at {self.surroundings.scan_rate_hz:g} Hz' if self.surroundings
                else ''))
+
+    def _say_who_is_outside_the_map(self, names):
+        """Warn about each robot that starts outside the map: nothing is solid out there."""
+        grid = self.surroundings.grid
+        for name, x, y in zip(names, *self.world.map_poses()[:2]):
+            if grid.cell_of(float(x), float(y)) is None:
+                self.get_logger().warning(
+                    f"{f'{name}: ' if name else ''}Starts at ({x:.3f}, {y:.3f}) in "
+                    f'{self.surroundings.map_frame}, outside the map ({grid.width} x '
+                    f'{grid.height} cells from its origin): no wall or scan return out there')
 
     def _initial_poses(self, count):
         p = self.params
@@ -231,9 +243,10 @@ class UnicycleSim(Node):
                 logger.warning(
                     f'{label}No cmd_vel for {self.params.cmd_vel_timeout:g} s: stopping the '
                     f'robot (the last came at {data // _NS}.{data % _NS:09d} s)')
-            else:  # a contact: data is (x, y) in the map, or for a robot (other, x, y)
-                what = ('Hit a wall' if kind == 'wall'
-                        else f'Ran into {self.robots[data[0]].name or "another robot"}')
+            else:  # a contact: data is (x, y) in the map, or for a robot (other, drove, x, y)
+                other = kind == 'robot' and (self.robots[data[0]].name or 'another robot')
+                what = ('Hit a wall' if kind == 'wall' else
+                        f'Ran into {other}' if data[1] else f'Was run into by {other}')
                 logger.warning(f'{label}{what} at ({data[-2]:.3f}, {data[-1]:.3f}) in '
                                f'{self.surroundings.map_frame}: stopped')
 

@@ -116,12 +116,12 @@ class Robot:
         values = (p.position.x, p.position.y, p.orientation.x, p.orientation.y,
                   p.orientation.z, p.orientation.w)
         if given not in (frame, map_frame):
-            why = f"is in frame '{given}', not in the odometry frame '{frame}'" + (
+            why = f"it is in frame '{given}', not in the odometry frame '{frame}'" + (
                 f" or the map frame '{map_frame}'" if map_frame else '')
         elif not all(math.isfinite(v) for v in values) or max(map(abs, values[:2])) > 1e6:
-            why = 'holds a non-finite or absurd value'
+            why = 'it holds a non-finite or absurd value'
         elif not any(values[2:]):
-            why = 'has a zero quaternion'
+            why = 'it has a zero quaternion'
         else:
             why = None
         if why is None:
@@ -133,9 +133,9 @@ class Robot:
                 else:  # in the map: odometry goes on where it was, map -> odom moves
                     self.world.place_in_map(self.index, p.position.x, p.position.y, yaw)
             except PlacementError as error:
-                why = f'would put it where it cannot be: {error}'
+                why = str(error)  # the robot at ... would be inside a wall, say
         if why is not None:
-            self.logger.warning(f'{self.label}Refusing initialpose: it {why}; the robot stays '
+            self.logger.warning(f'{self.label}Refusing initialpose: {why}; the robot stays '
                                 'where it is')
             return
         # The next step's odometry shows it: one published now would bear the stamp of the

@@ -55,7 +55,8 @@ _VELOCITIES = ('linear', 'angular', 'target_linear', 'target_angular')
 # w, linear and angular velocity (lists of floats for a small world, arrays otherwise).
 Odometry = namedtuple('Odometry', 'stamp_ns x y qz qw linear angular')
 # Something that happened during a step: kind 'timeout' (data: when the last command came
-# [ns]), 'wall' (data: (x, y) in the map where it touched) or 'robot' (data: (other, x, y)).
+# [ns]), 'wall' (data: (x, y) in the map where it touched) or 'robot' (data: (other, whether
+# this one drove into it, x, y)).
 Event = namedtuple('Event', 'kind robot data')
 
 
@@ -455,7 +456,7 @@ class World:
         tracks = [Track(*drives[i][1], drives[i][2]) if i in drives
                   else Track(float(mx[i]), float(my[i]), float(myaw[i]), [])
                   for i in range(len(self))]
-        moved = set(drives)
+        moved, drove = set(drives), set(drives)
         touched = set()  # pairs stopped against each other (their cut tracks end touching)
         while True:
             first = earliest_touch(tracks, self.radius, touched)
@@ -468,8 +469,8 @@ class World:
                     self._replay(k, drives.pop(k), at)
                 tracks[k] = tracks[k].cut(at)
             mx, my, _ = self.map_poses()
-            self._stop(i, 'robot', (j, float(mx[i]), float(my[i])))
-            self._stop(j, 'robot', (i, float(mx[j]), float(my[j])))
+            self._stop(i, 'robot', (j, i in drove, float(mx[i]), float(my[i])))
+            self._stop(j, 'robot', (i, j in drove, float(mx[j]), float(my[j])))
             moved -= {i, j}
         for i in moved:  # drove free of every robot
             if self.touching[i] == 'robot':
