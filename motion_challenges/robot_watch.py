@@ -203,6 +203,8 @@ class RobotWatch:
         """
         stalled = wall - self._watched_wall - WATCHDOG_PERIOD_S
         if stalled > 0.0:
+            if self._wall_start is not None:  # nor waiting for the robot: it could not hear it
+                self._wall_start = min(self._wall_start + stalled, wall)
             if self._odom_wall is not None:
                 self._odom_wall = min(self._odom_wall + stalled, wall)
             if self._clock_moved_wall is not None:

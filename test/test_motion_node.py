@@ -45,15 +45,31 @@ def rotate_robot(graph, **params):
 
 
 def test_start_timeout_does_not_count_the_time_spent_typing(graph):
-    graph.sim()
     node = rotate_robot(graph, mode='odom', start_timeout=START_TIMEOUT)
-    graph.wait_for_discovery()
-    time.sleep(TYPING_S)  # rotate_robot asks its questions after building the node
+    graph.spin_for(TYPING_S)  # rotate_robot asks its questions after building the node
     node.start(RotationRequest(90.0, 45.0, False))
+    # No robot yet, TYPING_S after the node was made and just after the answers: it waits on
+    # (its watchdog ran meanwhile, so no stall of its own excuses anything).
+    node.watch.on_watchdog()
+    assert not node.done
+    # The robot comes, and the motion runs as if no time had passed.  (The check above is
+    # done: the robot's coming need not race a 0.5 s wall-clock timeout on a busy machine.)
+    node.set_parameters([Parameter('start_timeout', value=60.0)])
+    graph.sim()
     graph.step_until(lambda: node.done, sim_timeout=5.0)
     assert node.exit_code == 0
     graph.step_for(0.1)
     assert angle_error(graph.pose()[2], math.radians(45.0)) < 1e-9
+
+
+def test_a_stall_of_its_own_is_not_counted_as_waiting_for_the_robot(graph):
+    # A process that did not run (a starved machine, a debugger) could not hear the robot.
+    node = rotate_robot(graph, start_timeout=START_TIMEOUT)
+    graph.spin_for(0.6)  # its watchdog runs
+    node.start(RotationRequest(90.0, 45.0, False))
+    time.sleep(2 * START_TIMEOUT)  # it does not run
+    node.watch.on_watchdog()  # late: what it did not run is excused
+    assert not node.done
 
 
 def test_without_a_robot_it_gives_up_start_timeout_after_the_answers(graph, capfd):
