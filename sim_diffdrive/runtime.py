@@ -182,6 +182,11 @@ def run(make_node, args=None, name='motion_challenges'):
         finally:
             rclpy.try_shutdown()
             faulthandler.cancel_dump_traceback_later()
+            # The run is over: a signal from now on changes nothing.  Left to Python, which
+            # puts the default action back as it finalizes, a second Ctrl-C then killed the
+            # process after its cleanup, exit 130 where the run's code was due.
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
+            signal.signal(signal.SIGTERM, signal.SIG_IGN)
     return exit_code
 
 

@@ -220,6 +220,9 @@ def test_ctrl_c_or_sigterm_with_nothing_failed_exits_0_and_says_which(
     assert all(node.calls == ['shutdown_hook', 'destroy_node'] for node in nodes)
     err = capfd.readouterr().err
     assert said in err and 'Traceback' not in err, err
+    # A second signal after the run changes nothing: Python would put the default action back
+    # as it finalizes, and a second Ctrl-C then killed the process (exit 130, not 0).
+    assert signal.getsignal(signal.SIGINT) == signal.getsignal(signal.SIGTERM) == signal.SIG_IGN
 
 
 class SignalledWhileEnding(Finished):
