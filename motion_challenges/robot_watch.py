@@ -116,10 +116,17 @@ class RobotWatch:
             self._use_odom(early.pop(0))
 
     def on_time_jump(self, jump):
-        """Drop the queue when simulated time goes back; mid-motion on odometry, give up."""
+        """Drop the queue when simulated time goes back; mid-motion, give up."""
         self._early_odoms.clear()
-        if self._node.needs_odom and self._node.state == MotionState.RUNNING:
-            self._distrust(f'Simulated time went back {-jump.delta.nanoseconds / _NS:.3f} s')
+        node = self._node
+        if node.state != MotionState.RUNNING:
+            return
+        went_back = f'Simulated time went back {-jump.delta.nanoseconds / _NS:.3f} s'
+        if node.needs_odom:
+            self._distrust(went_back)
+        else:  # a timed plan would wait for its clock to come round again and drive it twice
+            node.finish(EXIT_FAILED, f'{went_back} mid-motion; stopped the robot rather than '
+                                     'drive the plan again from then (simulator restarted?)')
 
     def missing(self):
         """Return what the motion still waits for, or '' when it can start."""

@@ -21,6 +21,7 @@ from motion_challenges.motion_node import MotionState
 from motion_challenges.prompts import RotationRequest
 from motion_challenges.rotate_robot import ask_missing
 from motion_challenges.rotate_robot import RotateRobot
+from motion_challenges.timed_out_and_back import TimedOutAndBack
 from nav_msgs.msg import Odometry
 import pytest
 from rclpy.node import Node
@@ -183,3 +184,22 @@ def test_input_that_ends_before_the_answers_leaves_no_node_behind(graph):
     with pytest.raises(UsageError, match='nothing moved'):
         ask_missing(node, read_line=lambda: '', write=lambda text: None)
     assert refused_nodes(graph) == []
+
+
+def test_a_timed_motion_whose_simulator_restarts_stops_rather_than_drive_its_plan_twice(
+        graph, capfd):
+    # A user killed the simulator mid-motion and started another: the new clock began near 0,
+    # the motion waited for it to reach its plan's start again, drove the whole plan a second
+    # time and said Done, error 0.000 mm, exit 0.
+    graph.sim()
+    node = graph.node(TimedOutAndBack)
+    graph.step_for(3.0)  # out on the first leg
+    assert node.state is MotionState.RUNNING
+    graph.remove(graph.clock_owner)
+    graph.sim()  # its clock starts again at 0
+    graph.step_until(lambda: node.done, sim_timeout=5.0)
+    assert node.exit_code == EXIT_FAILED
+    assert ' mid-motion; stopped the robot rather than drive the plan again from then ' \
+        '(simulator restarted?)' in capfd.readouterr().err
+    graph.step_for(0.5)
+    assert graph.odom().twist.twist.linear.x == 0.0
