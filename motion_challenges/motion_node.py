@@ -67,8 +67,8 @@ COMMON_PARAMETERS = (
          '[s, wall time].',
          low=0.0, high=3600.0, low_open=True, live=True),
     Spec('plot_file', '',
-         'Write a PNG of the run here: the path (start, end and goal) beside the heading and '
-         'the commanded and achieved speeds over time; empty = no plot. Needs matplotlib.',
+         'Write a PNG of the run here as it ends (a run cut off: as far as it got): the path '
+         'beside the heading and the speeds over time; empty = no plot. Needs matplotlib.',
          live=True),
     Spec('stamped', False,
          'Publish geometry_msgs/TwistStamped, stamped with the node clock, instead of Twist '
@@ -150,7 +150,7 @@ class MotionNode(Node):
         self.state = MotionState.WAITING
         self.done = self._primed = False
         self.odom = self.start_odom = self.exit_code = self.start_ns = None
-        self._stop_ns = self._wall_begun = self._tick_timer = None
+        self._stop_ns = self._wall_begun = self._tick_timer = self.plot_end = None
         # Waiting is timed on the wall clock: on sim time, node timers do not fire until the
         # simulator publishes /clock, and a missing simulator is exactly what to report.
         self._watchdog = self.create_timer(WATCHDOG_PERIOD_S, self.watch.on_watchdog,
@@ -194,9 +194,10 @@ class MotionNode(Node):
         for timer in (self._tick_timer, self._watchdog):
             if timer is not None:
                 timer.cancel()
+        write_plot(self, message)  # if plot_file asks for one (of however far it got)
 
     def shutdown_hook(self):
-        """Leave the robot stopped, whatever ended the run."""
+        """Leave the robot stopped, whatever ended the run (then plot a run cut off)."""
         if self.context.ok():
             self.stop_robot()
             said_goodbye = (self.lockstep is None
@@ -219,6 +220,8 @@ class MotionNode(Node):
         else:
             self.get_logger().warning('ROS was shut down before the final stop could be sent '
                                       '(a stop sent before stands)')
+        if not self.done:
+            write_plot(self, 'stopped before the end')
 
     def now_ns(self):
         return self.get_clock().now().nanoseconds
@@ -326,10 +329,9 @@ class MotionNode(Node):
             wall_s = time.monotonic() - self._wall_begun
             end_odom = self.odom if fresh else None
             achieved = self.summary(end_odom)
+            self.plot_end = end_odom, achieved
             self.finish(*closing_for(sim_s, wall_s, achieved, end_odom is not None,
                                      self.params.wait_for_odom))
-            if self.params.plot_file:
-                write_plot(self, end_odom, achieved)
 
     def begin(self, now_ns):
         """Prepare the motion; called on the first tick once the robot is there."""

@@ -196,8 +196,16 @@ def plot_run(filename, trajectory, start=None, end=None, goal=None, title='', se
         pyplot.close(figure)
 
 
-def write_plot(node, end_odom, achieved):
-    """Write a finished motion node's run to its plot_file (end_odom may be None); log it."""
+def write_plot(node, ending):
+    """
+    Write a motion node's run to its plot_file, if it has one and the motion began; log it.
+
+    However the run ended: its closing line's goal against the achieved pose (``node.plot_end``:
+    the odometry at rest and that text) once it settled, else ``ending`` (why it stopped).
+    """
+    if not node.params.plot_file or node.start_ns is None:
+        return
+    end_odom, achieved = node.plot_end or (None, ending)
     start = node.start_odom
     goal = node.goal_pose(start) if start else None
     # The odometry the motion started on comes first: the heading starts from its yaw.

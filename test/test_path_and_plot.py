@@ -30,6 +30,7 @@ from nav_msgs.msg import Path
 import pytest
 from rclpy.parameter import Parameter
 from sim_diffdrive.harness import pose_of
+from sim_diffdrive.runtime import EXIT_FAILED
 
 
 def test_path_follows_the_odometry_and_keeps_its_length_bounded(graph):
@@ -83,6 +84,28 @@ def test_motion_writes_a_png_of_its_run(graph, tmp_path):
     xs = [x for x, _, _ in node.trajectory]
     assert max(xs) == pytest.approx(0.5, abs=1e-9)
     assert math.hypot(*node.trajectory[-1][:2]) < 1e-6
+
+
+def test_a_run_cut_off_is_plotted_as_far_as_it_got(graph, tmp_path, capfd):
+    # circle_back_and_forth drives until stopped: by default it could never plot (a user's
+    # finding), nor could a motion that failed.  Ctrl-C ends a run through shutdown_hook.
+    pytest.importorskip('matplotlib')
+    plot = tmp_path / 'circle.png'
+    node = run_with_plot(graph, CircleBackAndForth, plot, half_period=3.0)
+    graph.step_for(4.0)
+    assert not node.done and not plot.exists()
+    node.shutdown_hook()
+    assert_png(plot, PLOT_SHAPE)
+    assert f'Wrote {plot}' in capfd.readouterr().err
+
+
+def test_a_run_that_failed_is_plotted_as_far_as_it_got(graph, tmp_path):
+    pytest.importorskip('matplotlib')
+    failed = tmp_path / 'failed.png'
+    node = run_with_plot(graph, TimedOutAndBack, failed, goal_distance=0.5, pause=0.2)
+    graph.step_for(1.0)
+    node.finish(EXIT_FAILED, 'No odometry for 1.2 s mid-motion')  # as its watchdog says it
+    assert_png(failed, PLOT_SHAPE)
 
 
 def test_unwritable_plot_file_is_reported_not_fatal(graph, tmp_path):
