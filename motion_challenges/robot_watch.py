@@ -244,7 +244,11 @@ class RobotWatch:
     def _watch_odometry(self):
         node = self._node
         publishers = node.count_publishers(self._odom_topic)
-        if publishers != 1:
+        if publishers == 0:  # stopped (restarted, the new one has not come yet)
+            node.finish(EXIT_FAILED, f'0 publishers on {self._odom_topic} mid-motion; stopped '
+                                     'the robot (is the simulator still running?)')
+            return
+        if publishers > 1:
             # A simulator restarted after a crash shows up beside its predecessor (gone for
             # good, but still in discovery for a while): its odometry can look continuous when
             # its clock or pose happens to have caught up with the last.

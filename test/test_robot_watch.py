@@ -22,6 +22,7 @@ from motion_challenges.timed_out_and_back import TimedOutAndBack
 import pytest
 from sim_diffdrive.harness import angle_error
 from sim_diffdrive.harness import pose_of
+from sim_diffdrive.runtime import EXIT_FAILED
 
 
 @pytest.mark.parametrize('node_class', [OdomOutAndBack, TimedOutAndBack])
@@ -43,3 +44,15 @@ def test_a_pause_of_the_motion_s_process_is_not_a_silent_simulator(graph, node_c
     graph.step_for(0.2)
     x, y, yaw = pose_of(probe.odom)
     assert math.hypot(x - 0.2, y) < 1e-6 and angle_error(yaw, math.pi) < 1e-6
+
+
+def test_a_simulator_gone_mid_motion_is_asked_after_not_called_restarted(graph, capfd):
+    # A simulator stopped with SIGTERM made odom_out_and_back say '(simulator restarted?)'.
+    graph.sim()
+    node = graph.node(OdomOutAndBack, legs=1, goal_distance=0.5)
+    graph.step_until(lambda: node.start_ns is not None, 5.0)
+    graph.remove(graph.clock_owner)  # its odometry publisher goes with it
+    graph.spin_until(lambda: node.done, 5.0)  # the watchdog looks (on wall time)
+    assert node.exit_code == EXIT_FAILED
+    assert ('0 publishers on /odom mid-motion; stopped the robot (is the simulator still '
+            'running?)') in capfd.readouterr().err

@@ -185,7 +185,8 @@ class UnicycleSim(Node):
         if self.surroundings:
             self.surroundings.start(self._frames(), self.now_ns(), self.taps)
         self.clock.start()
-        where = (f"{len(names)} robots ({', '.join(names)})" if p.robots else
+        where = (f"{len(names)} robot{'s' * (len(names) > 1)} ({', '.join(names)})"
+                 if p.robots else
                  f'Unicycle at ({p.initial_x:.3f}, {p.initial_y:.3f}, {p.initial_yaw:.3f} rad)')
         self.get_logger().info(
             f'{where}, odom at {p.rate_hz:g} Hz, cmd_vel timeout {p.cmd_vel_timeout:g} s'
