@@ -73,7 +73,7 @@ COMMON_PARAMETERS = (
     Spec('stamped', False,
          'Publish geometry_msgs/TwistStamped, stamped with the node clock, instead of Twist '
          "(ros2_control's diff_drive_controller takes only TwistStamped)."),
-    Spec('frame_id', 'base_footprint', 'With stamped: frame_id of the commands.', live=True),
+    Spec('frame_id', 'base_footprint', 'Frame of the commands (stamped).', live=True, frame=True),
 )
 # How a motion's closing line starts when it reached its goal (closing_line finds it).
 DONE = 'Done in '

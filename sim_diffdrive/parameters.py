@@ -49,7 +49,8 @@ class Spec:
 
     A default of None declares it without a value, ``kind`` naming its type.  ``low``/``high``
     bound numbers (and each element of a number array), ``low_open`` excludes ``low``;
-    ``choices`` restricts strings; ``length`` fixes an array's size, ``items`` its elements'
+    ``choices`` restricts strings, ``frame`` makes one a tf2 frame id (frame_problem);
+    ``length`` fixes an array's size, ``items`` its elements'
     type (float or str); ``live`` lets it change while the node runs (else read-only).
     """
 
@@ -60,6 +61,7 @@ class Spec:
     high: float = None
     low_open: bool = False
     choices: tuple = ()
+    frame: bool = False
     length: int = None
     kind: type = None
     live: bool = False
@@ -102,6 +104,8 @@ class Spec:
                 raise self._error(value, _MUST_BE[self.type_])
             if self.choices and value not in self.choices:
                 raise self._error(value, 'must be one of ' + ', '.join(self.choices))
+            if self.frame and frame_problem(value):
+                raise self._error(value, frame_problem(value))
             return value
         if self.type_ is list:
             if value is None and self.default == []:
@@ -146,6 +150,18 @@ class Spec:
         if isinstance(value, array):
             value = value.tolist()  # as rclpy hands over arrays from the command line or a set
         return ParameterError(f"parameter '{self.name}' {why}; got {value!r}")
+
+
+def frame_problem(frame):
+    """Return why tf2 cannot use frame as a frame id, or None."""
+    if not frame.strip():
+        return 'must name a frame, not be empty'
+    if any(c.isspace() for c in frame):
+        return 'must not hold whitespace'
+    if frame.startswith('/'):
+        # tf2 refuses it in a lookup, and an initialpose's frame is compared without it.
+        return "must not start with '/' (tf2 frame ids have none: 'map', not '/map')"
+    return None
 
 
 def declare(node, specs, on_change=None):

@@ -91,6 +91,14 @@ def test_a_misspelt_simulator_parameter_is_warned_about_and_leaves_the_default(
     assert sim.params.initial_x == 0.0
 
 
+@pytest.mark.parametrize('value,why', [('', 'must name a frame'), ('/base', "start with '/'"),
+                                       ('base link', 'whitespace')])
+def test_a_frame_parameter_takes_only_what_tf2_takes(make_node, value, why):
+    # A motion's frame_id took '' and '/base', which the simulator refuses for its frames.
+    frame = Spec('frame', 'base', 'A frame.', frame=True, live=True)
+    assert why in refusal(make_node, 'frame', value, specs=(frame,))
+
+
 def test_defaults(make_node):
     node, values = declare_with(make_node)
     assert values.speed == 0.5

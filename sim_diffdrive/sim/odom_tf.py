@@ -23,6 +23,7 @@ reject are refused by name (``check_frames``), at start and as a live set.
 
 from rclpy.qos import QoSProfile
 from sim_diffdrive.cdr import TransformLayout
+from sim_diffdrive.parameters import frame_problem
 from sim_diffdrive.parameters import ParameterError
 from tf2_msgs.msg import TFMessage
 
@@ -67,7 +68,7 @@ def check_frames(namespace, robots, frames, blame):
     itself, or give a frame two parents.  blame is the parameter named then.
     """
     for parameter, value in frames.items():
-        why = _unusable(value)
+        why = frame_problem(value)
         if why:
             raise ParameterError(f"parameter '{parameter}' {why}; got {value!r}")
     for robot in robots:
@@ -80,18 +81,6 @@ def check_frames(namespace, robots, frames, blame):
                     f'{frame!r}: /tf would carry a transform from {frame} to itself or give it '
                     f'two parents, which tf2 rejects; got {frames[parameter]!r}')
             published[frame] = parameter
-
-
-def _unusable(frame):
-    """Return why tf2 cannot use frame as a frame id, or None."""
-    if not frame.strip():
-        return 'must name a frame, not be empty'
-    if any(c.isspace() for c in frame):
-        return 'must not hold whitespace'
-    if frame.startswith('/'):
-        # tf2 refuses it in a lookup, and an initialpose's frame is compared without it.
-        return "must not start with '/' (tf2 frame ids have none: 'map', not '/map')"
-    return None
 
 
 class OdomTransform:
