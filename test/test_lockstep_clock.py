@@ -112,17 +112,24 @@ def test_the_simulator_says_it_has_heard_no_stamped_command_yet_for_good(graph):
     assert counter.unheard_s == math.inf
 
 
+def on_sim_time(context, name):
+    return Node(name, context=context, parameter_overrides=[Parameter('use_sim_time', value=True)])
+
+
+def simulator_side(context):
+    """Return a node that listens for lockstep answers, as a simulator does."""
+    owner = Node('owner', context=context)
+    owner.create_subscription(String, '/clock/answers', lambda msg: None, ANSWER_QOS)
+    return owner
+
+
 def test_leave_after_rclpy_shut_down_says_it_could_not_and_raises_nothing():
     # rclpy's default SIGINT handler shuts the context down before a program's `finally:
     # lockstep.leave()` runs (docs/time.md's example, Ctrl-C); leave() then raised RCLError.
     with held_context(domain_id=isolated_domain_id()) as context:
-        node = Node('leaving', context=context,
-                    parameter_overrides=[Parameter('use_sim_time', value=True)])
-        owner = Node('owner', context=context)
-        owner.create_subscription(String, '/clock/answers', lambda msg: None, ANSWER_QOS)
+        node, owner = on_sim_time(context, 'leaving'), simulator_side(context)
         lockstep = take_part(node)
-        member = lockstep.add(Node('other', context=context, parameter_overrides=[
-            Parameter('use_sim_time', value=True)]))
+        member = lockstep.add(on_sim_time(context, 'other'))
         deadline = time.monotonic() + 10.0
         while lockstep._publisher.get_subscription_count() == 0:
             assert time.monotonic() < deadline, 'the answer topic never matched'
@@ -138,10 +145,7 @@ def test_leave_after_rclpy_shut_down_says_it_could_not_and_raises_nothing():
 def test_a_node_whose_simulator_stops_listening_says_so_once(capfd):
     # A newcomer's node waited for ever, silent, after its simulator was stopped.
     with held_context(domain_id=isolated_domain_id()) as context:
-        node = Node('waiting', context=context,
-                    parameter_overrides=[Parameter('use_sim_time', value=True)])
-        owner = Node('owner', context=context)
-        owner.create_subscription(String, '/clock/answers', lambda msg: None, ANSWER_QOS)
+        node, owner = on_sim_time(context, 'waiting'), simulator_side(context)
         lockstep = take_part(node)
         executor = SingleThreadedExecutor(context=context)
         executor.add_node(node)
