@@ -119,7 +119,7 @@ class RobotWatch:
         """Drop the queue when simulated time goes back; mid-motion, give up."""
         self._early_odoms.clear()
         node = self._node
-        if node.state != MotionState.RUNNING:
+        if node.state not in (MotionState.RUNNING, MotionState.SETTLING):
             return
         went_back = f'Simulated time went back {-jump.delta.nanoseconds / _NS:.3f} s'
         if node.needs_odom:

@@ -217,7 +217,7 @@ def _warn_misspelt(node):
     names = list(node.get_parameters_by_prefix(''))  # use_sim_time and the specs' names
     for name in given_parameters(node):
         # One letter off in four is 0.75 alike: a short name's typo is as close as it can be.
-        cutoff = min(0.8, (len(name) - 1) / len(name)) if name else 0.8
+        cutoff = max(0.75, min(0.8, (len(name) - 1) / len(name)))  # 'z' is like nothing
         close = difflib.get_close_matches(name, names, n=1, cutoff=cutoff)
         if close and not node.has_parameter(name):
             node.get_logger().warning(

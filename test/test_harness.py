@@ -25,6 +25,7 @@ from geometry_msgs.msg import Twist
 import pytest
 import rclpy
 from rclpy.node import Node
+from rosgraph_msgs.msg import Clock as ClockMsg
 from sim_diffdrive.dds_teardown import held_context
 from sim_diffdrive.harness import kill_all
 from sim_diffdrive.harness import Process
@@ -244,6 +245,13 @@ def test_a_graphs_mistakes_are_named(graph, capfd):
     assert 'On wall time (use_sim_time is false) in a SimGraph' in err
     assert 'publishing /clock as its caller steps it' in err  # not 'at up to 10x (free clock)'
     assert err.count('On wall time') == 1  # the graph's own nodes are on sim time
+    # A listener on wall time has no timer to pace, a clock's owner keeps its own: no word.
+    graph.probe('wall_listener', use_sim_time=False, listen_only=True)
+    owner = graph.add(Node('other_clock_owner', context=graph.context))
+    owner.create_publisher(ClockMsg, 'other/clock', 1)
+    owner.create_timer(0.1, lambda: None)
+    graph.step()
+    assert 'On wall time' not in capfd.readouterr().err
 
 
 def test_waiting_for_odometry_that_never_comes_says_so_with_the_process_log(graph):

@@ -71,13 +71,13 @@ def test_a_parameter_spelt_like_one_of_the_nodes_is_warned_about_others_are_not(
     # rclpy ignores them all without a word; one like none of the node's is another node's
     # (a params file's /** section, -p in a process of several nodes).
     _, values = declare_with(make_node, ('sped', 1.0), ('rates', 5.0), ('speed', 1.5),
-                             ('linear_velocity', 1), ('mdoe', 'odom'))
+                             ('linear_velocity', 1), ('mdoe', 'odom'), ('z', 1))
     err = capfd.readouterr().err
     assert "Ignoring parameter 'mdoe'" in err  # four letters, one off: 0.75 alike
     assert ("Ignoring parameter 'sped': parameter_test has none by that name (did you mean "
             "'speed'?)") in err
     assert "Ignoring parameter 'rates'" in err and "(did you mean 'rate'?)" in err
-    assert 'linear_velocity' not in err and "'speed':" not in err
+    assert 'linear_velocity' not in err and "'speed':" not in err and "'z'" not in err
     assert values.speed == 1.5
 
 

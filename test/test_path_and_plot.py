@@ -108,6 +108,16 @@ def test_a_run_that_failed_is_plotted_as_far_as_it_got(graph, tmp_path):
     assert_png(failed, PLOT_SHAPE)
 
 
+def test_a_plot_file_matplotlib_cannot_write_ends_no_run_in_a_traceback(graph, tmp_path, capfd):
+    # 'run.txt': savefig raises ValueError, which from shutdown_hook made a Ctrl-C exit 1 and
+    # said the robot may not have been told to stop.
+    pytest.importorskip('matplotlib')
+    node = run_with_plot(graph, CircleBackAndForth, tmp_path / 'run.txt')
+    graph.step_for(1.0)
+    node.shutdown_hook()
+    assert "Could not write plot_file: Format 'txt' is not supported" in capfd.readouterr().err
+
+
 def test_unwritable_plot_file_is_reported_not_fatal(graph, tmp_path):
     pytest.importorskip('matplotlib')
     node = run_with_plot(graph, RotateRobot, tmp_path / 'missing' / 'run.png',

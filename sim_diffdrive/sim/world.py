@@ -56,7 +56,7 @@ _VELOCITIES = ('linear', 'angular', 'target_linear', 'target_angular')
 Odometry = namedtuple('Odometry', 'stamp_ns x y qz qw linear angular')
 # Something that happened during a step: kind 'timeout' (data: when the last command came
 # [ns]), 'wall' (data: (x, y) in the map where it touched) or 'robot' (data: (other, whether
-# this one drove into it, x, y)).
+# this one was driving towards it, x, y)).
 Event = namedtuple('Event', 'kind robot data')
 
 
@@ -456,7 +456,7 @@ class World:
         tracks = [Track(*drives[i][1], drives[i][2]) if i in drives
                   else Track(float(mx[i]), float(my[i]), float(myaw[i]), [])
                   for i in range(len(self))]
-        moved, drove = set(drives), set(drives)
+        moved = set(drives)
         touched = set()  # pairs stopped against each other (their cut tracks end touching)
         while True:
             first = earliest_touch(tracks, self.radius, touched)
@@ -468,9 +468,12 @@ class World:
                 if k in drives:
                     self._replay(k, drives.pop(k), at)
                 tracks[k] = tracks[k].cut(at)
-            mx, my, _ = self.map_poses()
-            self._stop(i, 'robot', (j, i in drove, float(mx[i]), float(my[i])))
-            self._stop(j, 'robot', (i, j in drove, float(mx[j]), float(my[j])))
+            mx, my, myaw = self.map_poses()
+            into = [float(self.linear[k]) * (math.cos(myaw[k]) * (mx[m] - mx[k])
+                                             + math.sin(myaw[k]) * (my[m] - my[k])) > 0.0
+                    for k, m in ((i, j), (j, i))]  # was it driving towards the other?
+            self._stop(i, 'robot', (j, into[0], float(mx[i]), float(my[i])))
+            self._stop(j, 'robot', (i, into[1], float(mx[j]), float(my[j])))
             moved -= {i, j}
         for i in moved:  # drove free of every robot
             if self.touching[i] == 'robot':

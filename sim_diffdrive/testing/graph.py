@@ -32,6 +32,7 @@ import time
 from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import LaserScan
 from sim_diffdrive.dds_profile import use_package_profile
 from sim_diffdrive.dds_teardown import held_context
@@ -428,7 +429,9 @@ def _overrides(params):
 
 def _warn_if_on_wall_time(node):
     """Warn about a node whose timers run on wall time: the graph's steps do not pace them."""
-    if node.timers and not node.get_parameter('use_sim_time').value:
+    timed = any(not timer.is_canceled() for timer in node.timers)  # (node.timers: a generator)
+    owns_a_clock = any(pub.msg_type is ClockMsg for pub in node.publishers)  # a free simulator
+    if timed and not owns_a_clock and not node.get_parameter('use_sim_time').value:
         node.get_logger().warning(
             'On wall time (use_sim_time is false) in a SimGraph: its timers do not follow the '
             "graph's steps; build it with parameter_overrides=sim_time_params(), or add it "
