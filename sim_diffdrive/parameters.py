@@ -104,8 +104,8 @@ class Spec:
                 raise self._error(value, _MUST_BE[self.type_])
             if self.choices and value not in self.choices:
                 raise self._error(value, 'must be one of ' + ', '.join(self.choices))
-            if self.frame and frame_problem(value):
-                raise self._error(value, frame_problem(value))
+            if self.frame and (why := frame_problem(value)):
+                raise self._error(value, why)
             return value
         if self.type_ is list:
             if value is None and self.default == []:
@@ -216,10 +216,12 @@ def _warn_misspelt(node):
     """
     names = list(node.get_parameters_by_prefix(''))  # use_sim_time and the specs' names
     for name in given_parameters(node):
+        if node.has_parameter(name):
+            continue
         # One letter off in four is 0.75 alike: a short name's typo is as close as it can be.
         cutoff = max(0.75, min(0.8, (len(name) - 1) / len(name)))  # 'z' is like nothing
         close = difflib.get_close_matches(name, names, n=1, cutoff=cutoff)
-        if close and not node.has_parameter(name):
+        if close:
             node.get_logger().warning(
                 f"Ignoring parameter '{name}': {node.get_name()} has none by that name (did you "
                 f"mean '{close[0]}'?)")
