@@ -163,5 +163,8 @@ def test_a_node_whose_simulator_stops_listening_says_so_once(capfd):
             lambda: err.append(capfd.readouterr().err) or 'no longer' in ''.join(err))
         assert ("Lockstep: the simulator no longer listens for this node's answers (was it "
                 'stopped?)') in ''.join(err)
+        for _ in range(20):  # whatever else DDS says of the gone reader, the line came once
+            executor.spin_once(timeout_sec=0.01)
+        assert (''.join(err) + capfd.readouterr().err).count('no longer listens') == 1
         executor.shutdown()
         node.destroy_node()

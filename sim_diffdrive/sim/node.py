@@ -245,9 +245,10 @@ class UnicycleSim(Node):
                     f'{label}No cmd_vel for {self.params.cmd_vel_timeout:g} s: stopping the '
                     f'robot (the last came at {data // _NS}.{data % _NS:09d} s)')
             else:  # a contact: data is (x, y) in the map, or for a robot (other, drove, x, y)
-                other = kind == 'robot' and (self.robots[data[0]].name or 'another robot')
-                what = ('Hit a wall' if kind == 'wall' else
-                        f'Ran into {other}' if data[1] else f'Was run into by {other}')
+                what = 'Hit a wall'
+                if kind == 'robot':
+                    other = self.robots[data[0]].name or 'another robot'
+                    what = f'Ran into {other}' if data[1] else f'Was run into by {other}'
                 logger.warning(f'{label}{what} at ({data[-2]:.3f}, {data[-1]:.3f}) in '
                                f'{self.surroundings.map_frame}: stopped')
 
