@@ -37,16 +37,11 @@ from sim_diffdrive.harness import isolated_domain_id
 from sim_diffdrive.harness import SimGraph
 from sim_diffdrive.testing.graph import DOMAIN_BLOCK
 
+if int(os.environ.get('PYTEST_XDIST_WORKER', 'gw0')[2:]) >= DOMAIN_BLOCK:
+    # pytest -n: worker gwN on the domain N after the first of the block its run claimed (one
+    # for each of DOMAIN_BLOCK workers); the workers beyond those claim a block each.
+    os.environ.pop(DOMAIN_VARIABLE, None)
 DOMAIN_ID = isolated_domain_id()
-if os.environ.get('PYTEST_XDIST_WORKER', 'gw0') != 'gw0':
-    # pytest -n: each worker on a domain of its own, the next ones of the block that the run
-    # claimed (DOMAIN_BLOCK of them); workers beyond those claim a block each.
-    worker = int(os.environ['PYTEST_XDIST_WORKER'][2:])
-    if worker < DOMAIN_BLOCK:
-        os.environ[DOMAIN_VARIABLE] = str((DOMAIN_ID - 1 + worker) % 100 + 1)
-    else:
-        del os.environ[DOMAIN_VARIABLE]  # beyond the block: a block of its own
-    DOMAIN_ID = isolated_domain_id()
 use_package_profile()  # before this process makes its first node
 # Subprocesses write each log line at once, so a test reads their output as it happens.
 os.environ.setdefault('RCUTILS_LOGGING_BUFFERED_STREAM', '0')

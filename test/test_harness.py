@@ -16,6 +16,7 @@
 
 import gc
 import os
+import re
 import shutil
 import signal
 import sys
@@ -24,6 +25,8 @@ import time
 from geometry_msgs.msg import Twist
 import pytest
 import rclpy
+from rclpy.clock import Clock
+from rclpy.clock import ClockType
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock as ClockMsg
 from sim_diffdrive.dds_teardown import held_context
@@ -155,8 +158,10 @@ def test_runs_on_one_machine_never_share_a_block_of_domains(tmp_path):
         others = int(other.output())
         claimed = [claim_domains(str(tmp_path)) for _ in range(24)]
         assert sorted(claimed + [others]) == list(range(1, 101, DOMAIN_BLOCK))
-        # All taken: a block is shared, and nothing more is locked.
-        assert claim_domains(str(tmp_path)) in claimed + [others]
+        # All taken: a block is shared, said so, and nothing more is locked.
+        with pytest.warns(RuntimeWarning,
+                          match=r'sharing domain .* \(set SIM_GRAPH_DOMAIN_ID'):
+            assert claim_domains(str(tmp_path)) in claimed + [others]
         assert len(graph_module._claims) == held + 24
         # A claim ends with the process that holds it, however it ends.
         stop(other, signal.SIGKILL)
@@ -166,6 +171,39 @@ def test_runs_on_one_machine_never_share_a_block_of_domains(tmp_path):
         for lock in graph_module._claims[held:]:
             os.close(lock)
         del graph_module._claims[held:]
+
+
+@pytest.mark.parametrize('given,worker,domain', [
+    ('40', None, 40), ('40', 'gw0', 40), ('40', 'gw3', 43), ('0', 'gw2', 2),
+    ('300', None, '=300: a ROS domain is a whole number from 0 to 232'), ('x1', 'gw1', '=x1:'),
+    ('231', 'gw2', r'=231 \+ 2 \(worker gw2\): a ROS domain'),
+])
+def test_a_given_domain_is_each_pytest_workers_own_and_checked(
+        monkeypatch, given, worker, domain):
+    # SIM_GRAPH_DOMAIN_ID pinned with pytest -n 4 put every worker on it, and the graphs of
+    # one heard the others'; 300 ended pytest without a word (Fast DDS exits).
+    for name in ('ROS_DOMAIN_ID', 'ROS_AUTOMATIC_DISCOVERY_RANGE', graph_module.WORKER_VARIABLE):
+        monkeypatch.delenv(name, raising=False)
+    monkeypatch.setenv(graph_module.DOMAIN_VARIABLE, given)
+    if worker:
+        monkeypatch.setenv('PYTEST_XDIST_WORKER', worker)
+    else:
+        monkeypatch.delenv('PYTEST_XDIST_WORKER', raising=False)
+    if isinstance(domain, str):
+        with pytest.raises(ValueError, match=domain):
+            graph_module.isolated_domain_id()
+        return
+    assert graph_module.isolated_domain_id() == domain
+    assert graph_module.isolated_domain_id() == domain  # once: its children's is the same
+    assert os.environ['ROS_DOMAIN_ID'] == os.environ[graph_module.DOMAIN_VARIABLE] == str(domain)
+
+
+def test_two_graphs_open_at_once_are_on_domains_of_their_own(graph):
+    # The second used to take the first's domain: the test's node drove the other's robot.
+    with SimGraph() as one, SimGraph() as two:
+        assert one.context.get_domain_id() != two.context.get_domain_id()
+    with SimGraph() as again:  # the first's domain is free again
+        assert again.context.get_domain_id() == graph_module.isolated_domain_id()
 
 
 def test_a_graph_without_a_stepped_simulator_removes_nodes(ros_context):
@@ -252,6 +290,23 @@ def test_a_graphs_mistakes_are_named(graph, capfd):
     owner.create_timer(0.1, lambda: None)
     graph.step()
     assert 'On wall time' not in capfd.readouterr().err
+    # A timer on the steady clock of a node on sim time: the graph does not pace it either.
+    steady = graph.add(Node('steady_timer', context=graph.context,
+                            parameter_overrides=graph.sim_time_params()))
+    steady.create_timer(0.1, lambda: None, clock=Clock(clock_type=ClockType.STEADY_TIME))
+    graph.step()
+    assert 'A timer on STEADY_TIME in a SimGraph' in capfd.readouterr().err
+    # What a step that does not settle waits for, in words (its timeout: 10 s).
+    graph.probe('late')
+    assert re.fullmatch(r'/\S+ to take its /clock',
+                        *graph._unsettled(graph.now_ns + graph.step_ns))
+    # Added twice, or destroyed without remove(): said at once, not after that wait.
+    with pytest.raises(ValueError, match='/steady_timer is in the graph already'):
+        graph.add(steady)
+    steady.destroy_node()
+    with pytest.raises(RuntimeError, match='/steady_timer was destroyed in the graph: take a '
+                                           r'node out with remove\(node\)'):
+        graph.step()
 
 
 def test_waiting_for_odometry_that_never_comes_says_so_with_the_process_log(graph):

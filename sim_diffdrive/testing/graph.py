@@ -28,7 +28,10 @@ import itertools
 import os
 import random
 import time
+import warnings
 
+from rclpy.clock import ClockType
+from rclpy.exceptions import InvalidHandle
 from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -51,11 +54,16 @@ _NS = 1_000_000_000
 # wide margin for a command to cross the graph before the next clock step.
 FREE_REAL_TIME_FACTOR = 10.0
 DOMAIN_VARIABLE = 'SIM_GRAPH_DOMAIN_ID'
+# The pytest-xdist worker whose domain SIM_GRAPH_DOMAIN_ID already is (isolated_domain_id).
+WORKER_VARIABLE = 'SIM_GRAPH_DOMAIN_WORKER'
+# Fast DDS's highest: a higher domain's ports pass 65535, and the process exits without a word.
+MAX_DOMAIN_ID = 232
 # Domains a run claims at once: one for each of up to this many pytest workers.
 DOMAIN_BLOCK = 4
 # Where runs lock their blocks of domains: one place for the whole machine.
 DOMAIN_LOCKS = '/tmp/sim_graph_domains'
 _claims = []  # the lock files (descriptors) this process holds (claim_domains)
+_open_domains = []  # those of the SimGraphs open in this process on contexts of their own
 _SIM_PARAMETERS = [spec.name for spec in PARAMETERS] + ['use_sim_time']
 
 
@@ -79,11 +87,15 @@ class Lockstep:
         self._answers = {}  # node -> its answer in the ledger
         self._counters = {}  # node -> its MessageCounter (counted from discovery on)
         self._ids = itertools.count()  # a removed node's id stays taken (its goodbye is final)
+        self._names = {}  # node -> its fully qualified name
         self._discovered = False
 
     def add(self, node):
         """Spin node with the graph and count its traffic."""
+        if node in self.nodes:
+            raise ValueError(f'{node.get_fully_qualified_name()} is in the graph already')
         self.nodes.append(node)
+        self._names[node] = node.get_fully_qualified_name()  # to name it once destroyed
         self.executor.add_node(node)
         self._discovered = False
         return node
@@ -113,6 +125,7 @@ class Lockstep:
         released = self.executor.create_task(lambda: None)
         self.spin_until(released.done, 10.0, poll=0.005)
         self.nodes.remove(node)
+        self._names.pop(node)
         if node is self.clock_owner:
             self.clock_owner = None
         node.destroy_node()
@@ -181,6 +194,10 @@ class Lockstep:
 
     def settled(self, now_ns):
         """Return whether every message sent was handled and every node's timers have run."""
+        return next(self._unsettled(now_ns), None) is None
+
+    def _unsettled(self, now_ns):
+        """Yield what the step at now_ns still waits for, in words (settled(): none)."""
         # The nodes first: while a step settles, a node yet to take its /clock or run a due
         # timer is found at a glance, where the ledger weighs every member's every topic (and
         # counts the caught-up members in, once nothing is owed).
@@ -190,16 +207,21 @@ class Lockstep:
                 continue
             counter = counters.get(node)
             if counter is not None and counter.clock_ns not in (None, now_ns):
-                return False  # it has yet to take this step's /clock: seen without rclpy
+                yield f'{self._names[node]} to take its /clock'  # seen without rclpy
+                return
             clock = node.get_clock()  # on sim time (use_sim_time) while ROS time is active
             if clock.ros_time_is_active and clock.now().nanoseconds != now_ns:
-                return False
+                yield f'{self._names[node]} to take its /clock'
+                return
             for timer in node.timers:
                 if not timer.is_canceled():
                     due = timer.time_until_next_call()
                     if due is not None and due <= 0:
-                        return False
-        return not self.ledger.waiting_for(now_ns)
+                        yield f'a due timer of {self._names[node]} to run'
+                        return
+        for member, topic, due in self.ledger.waiting_for(now_ns):
+            yield (f'{member} to answer' if topic is None else f'{member} to take {due} '
+                   f'message(s) on {topic}' if due else f'{member} to hear the latest on {topic}')
 
     @property
     def now_ns(self):
@@ -217,6 +239,13 @@ class Lockstep:
     def step(self, steps=1, timeout=10.0):
         """Advance simulated time by whole steps, settling after each (what was sent first)."""
         self._stepped()
+        for node in self.nodes:
+            try:
+                with node.handle:
+                    pass
+            except InvalidHandle:
+                raise RuntimeError(f'{self._names[node]} was destroyed in the graph: take a '
+                                   'node out with remove(node), which destroys it') from None
         if not self._discovered:
             self.wait_for_discovery()
         now_ns = self.clock_owner.now_ns()
@@ -230,7 +259,9 @@ class Lockstep:
             for answer in self._answers.values():
                 answer.step_ns = now_ns  # each node answers at once: settled() checks the rest
             if not self.spin_until(lambda: self.settled(now_ns), timeout):
-                raise RuntimeError(f'graph did not settle at t={now_ns / _NS:.3f} s')
+                waiting = '; '.join(self._unsettled(now_ns))
+                raise RuntimeError(f'graph did not settle at t={now_ns / _NS:.3f} s within '
+                                   f'{timeout:g} s: waiting for {waiting}')
 
     def step_until(self, predicate, sim_timeout):
         """Step until predicate() holds; raise after sim_timeout simulated seconds."""
@@ -252,17 +283,35 @@ class Lockstep:
 
 def isolated_domain_id():
     """
-    Return this test run's ROS domain, claimed once for the run and exported; discovery local.
+    Return this process's ROS domain, claimed once and exported; discovery local.
 
     The first call claims a block (claim_domains) and stores its first domain in
-    SIM_GRAPH_DOMAIN_ID (set that to pin one); child processes get it as ROS_DOMAIN_ID.
+    SIM_GRAPH_DOMAIN_ID (set that to pin one); child processes get it as ROS_DOMAIN_ID.  A
+    pytest-xdist worker gwN given a domain (pinned, or the block its run claimed) takes that
+    domain + N, so that no two workers share one.
     """
-    domain = os.environ.get(DOMAIN_VARIABLE)
-    if domain is None:
-        domain = os.environ[DOMAIN_VARIABLE] = str(claim_domains())
-    os.environ['ROS_DOMAIN_ID'] = domain
+    given = os.environ.get(DOMAIN_VARIABLE)
+    domain = claim_domains() if given is None else _domain_number(given)
+    worker = os.environ.get('PYTEST_XDIST_WORKER')
+    if worker and os.environ.get(WORKER_VARIABLE) != worker:
+        os.environ[WORKER_VARIABLE] = worker  # its child processes: the domain is theirs too
+        if given is not None:
+            domain = _domain_number(domain + int(worker[2:]), f' + {worker[2:]} (worker {worker})')
+    os.environ[DOMAIN_VARIABLE] = os.environ['ROS_DOMAIN_ID'] = str(domain)
     os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
-    return int(domain)
+    return domain
+
+
+def _domain_number(value, how=''):
+    """Return value as a domain, or ValueError naming SIM_GRAPH_DOMAIN_ID and the valid range."""
+    try:
+        domain = int(value)
+    except ValueError:
+        domain = -1
+    if not 0 <= domain <= MAX_DOMAIN_ID:
+        raise ValueError(f'{DOMAIN_VARIABLE}={os.environ[DOMAIN_VARIABLE]}{how}: a ROS domain is '
+                         f'a whole number from 0 to {MAX_DOMAIN_ID} (Fast DDS)')
+    return domain
 
 
 def claim_domains(directory=None):
@@ -294,6 +343,9 @@ def claim_domains(directory=None):
             continue
         _claims.append(lock)  # held open (and so locked) until this process ends
         return start
+    warnings.warn(f'Every block of ROS domains 1-100 is held by another run on this machine: '
+                  f'sharing domain {starts[0]}, whose nodes may hear each other (set '
+                  f'{DOMAIN_VARIABLE} to a free domain)', RuntimeWarning, stacklevel=2)
     return starts[0]
 
 
@@ -310,7 +362,12 @@ class SimGraph(Lockstep):
         # A context of its own goes on close(), its participant the safe way (dds_teardown.py).
         self._own = contextlib.ExitStack()
         if context is None:
-            context = self._own.enter_context(held_context(domain_id=isolated_domain_id()))
+            domain = isolated_domain_id()
+            if domain in _open_domains:  # another graph is open: one would hear the other
+                domain = claim_domains()
+            _open_domains.append(domain)
+            self._own.callback(_open_domains.remove, domain)
+            context = self._own.enter_context(held_context(domain_id=domain))
         super().__init__(executor_class(context=context))
         self.context = context
         self._probes = {}  # robot name (None: the one on odom) -> listening Probe
@@ -429,10 +486,14 @@ def _overrides(params):
 
 def _warn_if_on_wall_time(node):
     """Warn about a node whose timers run on wall time: the graph's steps do not pace them."""
-    timed = any(not timer.is_canceled() for timer in node.timers)  # (node.timers: a generator)
+    clocks = {timer.clock.clock_type for timer in node.timers if not timer.is_canceled()}
     owns_a_clock = any(pub.msg_type is ClockMsg for pub in node.publishers)  # a free simulator
-    if timed and not owns_a_clock and not node.get_parameter('use_sim_time').value:
+    if clocks and not owns_a_clock and not node.get_parameter('use_sim_time').value:
         node.get_logger().warning(
             'On wall time (use_sim_time is false) in a SimGraph: its timers do not follow the '
             "graph's steps; build it with parameter_overrides=sim_time_params(), or add it "
             'with node()')
+    elif clocks - {ClockType.ROS_TIME}:
+        node.get_logger().warning(
+            f'A timer on {min(clocks - {ClockType.ROS_TIME}).name} in a SimGraph: it does not '
+            "follow the graph's steps; make it with the node's clock (create_timer's default)")
