@@ -160,8 +160,16 @@ class Participant:
 
         An answer already sent is sent again when /clock came again since: the simulator
         re-sends /clock while it waits, so an answer lost on the way is repeated too (once,
-        whatever the number of nodes: the first node's /clock tells).
+        whatever the number of nodes: the first node's /clock tells).  Once rclpy is shut down
+        (its SIGINT handler may do that between two callbacks) nothing is said.
         """
+        try:
+            self._answer(leaving)
+        except RuntimeError:  # rclpy's RCLError: its context is no longer valid
+            if self.node.context.ok():
+                raise
+
+    def _answer(self, leaving):
         if self.left or self._publisher.get_subscription_count() == 0:
             return  # gone, or no simulator steps in lockstep (or none yet): spare the hot path
         step_ns, counts = self._totals()
