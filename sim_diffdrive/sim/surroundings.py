@@ -66,8 +66,9 @@ WORLD_PARAMETERS = (
          low=0.0, high=1000.0, low_open=True),
     Spec('scan_noise_std', 0.0, 'Standard deviation of the Gaussian noise on each range [m]; '
          '0 = exact.', low=0.0, high=100.0),
-    Spec('seed', 0, 'Seed of the scan noise: runs with one seed give the same scans, bit for '
-         'bit.', low=0, high=2 ** 31 - 1),
+    Spec('seed', 0, "Seed of the scan noise, drawn from the seed and each scan's stamp: runs "
+         'with one seed give the same scans at the same times, bit for bit.', low=0,
+         high=2 ** 31 - 1),
     Spec('scan_frame_id', 'base_scan', "Frame of the scan, at the robot's centre; base frame "
          "-> scan frame goes on /tf_static (a default name gets the robot's prefix)."),
 )
@@ -164,7 +165,7 @@ class Surroundings:
         self._steps += 1
         if not due:
             return
-        ranges = self.scanner.scan(*world.map_poses())
+        ranges = self.scanner.scan(*world.map_poses(), stamp_ns)
         stamp = Time(nanoseconds=stamp_ns).to_msg()
         for pub, frame, row in zip(self.scan_pubs, self._scan_frames, ranges):
             msg = LaserScan(header=Header(stamp=stamp, frame_id=frame),

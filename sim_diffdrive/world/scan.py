@@ -201,15 +201,21 @@ class Scanner:
         self.angle_max = self.angle_min + (len(self.angles) - 1) * self.angle_increment
         self.range_min, self.range_max = float(range_min), float(range_max)
         self.noise_std, self.radius = float(noise_std), float(radius)
-        self._rng = np.random.default_rng(seed)
+        self.seed = seed
         self._padded = pad_solid(grid) if grid is not None else None
 
-    def scan(self, x, y, yaw):
-        """Return cast() plus noise: float32 (robots, beams), -inf/+inf out of range (REP 117)."""
+    def scan(self, x, y, yaw, stamp_ns=0):
+        """
+        Return cast() plus noise: float32 (robots, beams), -inf/+inf out of range (REP 117).
+
+        The noise is drawn from (seed, stamp_ns): a scan's is the same whenever it is asked for,
+        however many scans went before (a simulator that ran before a node joined).
+        """
         ranges = cast(self.grid, x, y, yaw, self.angles, self.range_max, self.radius,
                       padded=self._padded)
         if self.noise_std > 0.0:
-            noise = self._rng.normal(0.0, self.noise_std, ranges.shape)
+            rng = np.random.default_rng((self.seed, stamp_ns))
+            noise = rng.normal(0.0, self.noise_std, ranges.shape)
             finite = np.isfinite(ranges)
             ranges[finite] += noise[finite]
         ranges[ranges < self.range_min] = -np.inf
