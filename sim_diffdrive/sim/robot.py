@@ -142,6 +142,11 @@ class Robot:
         # step already out with another pose (tf2 drops a repeated stamp).
         self.logger.info(f'{self.label}Set to ({p.position.x:.3f}, {p.position.y:.3f}, '
                          f'{yaw:.3f} rad) in {given} by initialpose, at rest')
+        walls = self.world.walls
+        x, y = (float(xy[self.index]) for xy in self.world.map_poses()[:2])
+        if walls is not None and walls.grid.cell_of(x, y) is None:  # as a start there is
+            self.logger.warning(f'{self.label}At ({x:.3f}, {y:.3f}) in the map, outside it: no '
+                                'wall or scan return out there')
 
     # -- commands ---------------------------------------------------------------------------
 
