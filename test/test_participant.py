@@ -25,6 +25,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.time import Time
 from rosgraph_msgs.msg import Clock as ClockMsg
+from sim_diffdrive.dds_profile import PROFILE_VARIABLE
 from sim_diffdrive.lockstep.handshake import Answer
 from sim_diffdrive.lockstep.handshake import Roster
 from sim_diffdrive.lockstep.participant import ANSWER_QOS
@@ -207,7 +208,7 @@ def test_take_part_needs_sim_time(ros_context):
         node.destroy_node()
 
 
-def test_a_roster_that_says_it_was_dropped_is_noted_once_per_drop(node):
+def test_a_roster_that_says_it_was_dropped_is_noted_once_per_drop(node, monkeypatch):
     lockstep = take_part(node)
     warned = []
     logger = SimpleNamespace(warning=warned.append, info=lambda text: None)
@@ -222,8 +223,12 @@ def test_a_roster_that_says_it_was_dropped_is_noted_once_per_drop(node):
         lockstep._on_roster(roster({lockstep.id}, {lockstep.id: 2_500_000_000}))
     assert lockstep.dropped_ns == 2_500_000_000 and lockstep.joined
     assert len(warned) == 1 and 'went on without this node at 2.500 s' in warned[0]
+    assert 'Fast DDS' not in warned[0]  # this process loads the package's profile (conftest)
+    # A user's node without it is told: on a lossy link repairs wait for a 3 s heartbeat.
+    monkeypatch.delenv(PROFILE_VARIABLE)
     lockstep._on_roster(roster({lockstep.id}, {lockstep.id: 4_000_000_000}))
     assert lockstep.dropped_ns == 4_000_000_000 and len(warned) == 2
+    assert f'profile ({PROFILE_VARIABLE}, docs/time.md) a lost message waits 3 s' in warned[1]
 
 
 def test_nothing_heard_is_minus_one_for_a_while_and_a_stale_stamp_never_lowers(node):

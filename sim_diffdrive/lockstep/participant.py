@@ -21,6 +21,7 @@ makes several nodes of a process one participant.  The rules for a node that tak
 for several nodes: docs/time.md ("Take part with your own node").
 """
 
+import os
 import time
 import uuid
 
@@ -32,6 +33,7 @@ from rclpy.qos import DurabilityPolicy
 from rclpy.qos import QoSProfile
 from rclpy.qos import ReliabilityPolicy
 from sim_diffdrive.cdr import string_message
+from sim_diffdrive.dds_profile import PROFILE_VARIABLE
 from sim_diffdrive.lockstep.counter import clock_topic
 from sim_diffdrive.lockstep.counter import MessageCounter
 from sim_diffdrive.lockstep.counter import UNHEARD_S
@@ -326,7 +328,9 @@ class Participant:
             self.dropped_ns = dropped_ns
             self.node.get_logger().warning(
                 f'{roster.owner} went on without this node at {dropped_ns / _NS:.3f} s: it heard '
-                'nothing from it for its lockstep_timeout (a stalled process, or a lossy link?)')
+                'nothing from it for its lockstep_timeout (a stalled process, or a lossy link?)'
+                + ('' if os.environ.get(PROFILE_VARIABLE) else "; without the package's Fast DDS "
+                   f'profile ({PROFILE_VARIABLE}, docs/time.md) a lost message waits 3 s'))
         joined = self.id in roster.members
         if joined != self.joined:
             self.joined = joined
