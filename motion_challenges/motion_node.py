@@ -124,9 +124,9 @@ class MotionNode(Node):
     # The robot's (linear, angular) acceleration limits: its speed ramps towards each command
     # at them (0: it takes a command at once), as the closed loops predict (CommandLog).
     robot_accel = (0.0, 0.0)
-    # How long shutdown_hook waits for the final stop to be acknowledged [s, wall time]; a
-    # fleet sets 0 and waits once for all.
-    stop_ack_timeout = 0.2
+    # How long shutdown_hook waits for the final stop to be acknowledged [s, wall time], and
+    # whether it plots: a fleet sets 0 and False, and waits once for all, then plots them.
+    stop_ack_timeout, plots_itself = 0.2, True
 
     def __init__(self, node_name, specs, participant=None, **kwargs):
         super().__init__(node_name, **kwargs)
@@ -137,8 +137,7 @@ class MotionNode(Node):
             TwistStamped if self.params.stamped else Twist, 'cmd_vel', 10)
         self.watch = RobotWatch(self, self.resolve_topic_name('odom'), self._use_odom,
                                 self._distrust)
-        # As bytes: rclpy's Odometry object costs about 100 us a message, a motion needs five
-        # numbers of it (OdomPose).
+        # As bytes: rclpy's Odometry object costs about 100 us a message; a motion reads five.
         self.create_subscription(Odometry, 'odom', self.watch.on_odom, 50, raw=True)
         self._progress_log = Throttle(1.0)  # a progress line a second
         self._logged = None
@@ -151,6 +150,7 @@ class MotionNode(Node):
         self.done = self._primed = False
         self.odom = self.start_odom = self.exit_code = self.start_ns = None
         self._stop_ns = self._wall_begun = self._tick_timer = self.plot_end = None
+        self.ending = 'stopped before the end'  # until finish() says how it ended (its plot)
         # Waiting is timed on the wall clock: on sim time, node timers do not fire until the
         # simulator publishes /clock, and a missing simulator is exactly what to report.
         self._watchdog = self.create_timer(WATCHDOG_PERIOD_S, self.watch.on_watchdog,
@@ -191,13 +191,13 @@ class MotionNode(Node):
         self.watch.stop()
         self.exit_code = exit_code
         self.done = True
+        self.ending = message
         for timer in (self._tick_timer, self._watchdog):
             if timer is not None:
                 timer.cancel()
-        write_plot(self, message)  # if plot_file asks for one (of however far it got)
 
     def shutdown_hook(self):
-        """Leave the robot stopped, whatever ended the run (then plot a run cut off)."""
+        """Leave the robot stopped, whatever ended the run; then plot it (unless in a fleet)."""
         if self.context.ok():
             self.stop_robot()
             said_goodbye = (self.lockstep is None
@@ -220,8 +220,8 @@ class MotionNode(Node):
         else:
             self.get_logger().warning('ROS was shut down before the final stop could be sent '
                                       '(a stop sent before stands)')
-        if not self.done:
-            write_plot(self, 'stopped before the end')
+        if self.plots_itself:
+            write_plot(self, self.ending)
 
     def now_ns(self):
         return self.get_clock().now().nanoseconds

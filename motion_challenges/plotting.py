@@ -196,14 +196,15 @@ def plot_run(filename, trajectory, start=None, end=None, goal=None, title='', se
         pyplot.close(figure)
 
 
-def write_plot(node, ending):
+def write_plot(node, ending, plot_file=None):
     """
     Write a motion node's run to its plot_file, if it has one and the motion began; log it.
 
     However the run ended: its closing line's goal against the achieved pose (``node.plot_end``:
     the odometry at rest and that text) once it settled, else ``ending`` (why it stopped).
     """
-    if not node.params.plot_file or node.start_ns is None:
+    plot_file = plot_file or node.params.plot_file  # a fleet's robot: a file of its own
+    if not plot_file or node.start_ns is None:
         return
     end_odom, achieved = node.plot_end or (None, ending)
     start = node.start_odom
@@ -211,7 +212,6 @@ def write_plot(node, ending):
     # The odometry the motion started on comes first: the heading starts from its yaw.
     odometry = ([(start.stamp_ns, start.yaw, *start.twist)] if start else []) + [
         s for s in node.odometry_samples if not start or s[0] > start.stamp_ns]
-    plot_file = node.params.plot_file
     try:
         plot_run(plot_file, node.trajectory,
                  start=(start.x, start.y, start.yaw) if start else None,

@@ -30,6 +30,7 @@ import signal
 
 from motion_challenges import motion_fleet
 from motion_challenges.circle_back_and_forth import CircleBackAndForth
+from motion_challenges import motion_fleet
 from motion_challenges.motion_fleet import build_fleet
 from motion_challenges.motion_fleet import fleet_plan
 from motion_challenges.motion_fleet import motion_classes
@@ -216,6 +217,24 @@ def test_motions_on_the_fleets_clock_answer_through_it_and_others_on_their_own(
             assert (node.lockstep is not None) == node.get_parameter('use_sim_time').value
             if fleet_takes_part and node.lockstep is not None:
                 assert node.lockstep.participant is fleet.lockstep
+
+
+def test_a_fleet_plots_each_robot_to_a_file_of_its_own_after_its_goodbye(tmp_path, monkeypatch):
+    # -p plot_file:= reaches every motion: each robot's plot overwrote the one before.  And a
+    # motion drew its plot as it ended, in the fleet's lockstep: it held every robot's clock,
+    # past a lockstep_timeout of 0.3 s, and the others failed.
+    written = []
+    monkeypatch.setattr(motion_fleet, 'write_plot', lambda node, ending, path: written.append(
+        (node.get_namespace(), path, fleet.lockstep.left)))
+    with fleet_in(['--ros-args', '-p', 'robots:=[robot1,robot2]', '-p', 'use_sim_time:=true',
+                   '-p', 'motions:=[timed_out_and_back]', '-p',
+                   f'plot_file:={tmp_path}/fleet.png']) as (fleet, nodes):
+        for node in nodes:
+            node.shutdown_hook()
+        assert written == []
+        fleet.shutdown_hook()
+    assert written == [(f'/{robot}', f'{tmp_path}/fleet_{robot}.png', True)
+                       for robot in ('robot1', 'robot2')]
 
 
 def test_a_namespace_given_to_the_process_comes_before_every_robots():

@@ -79,6 +79,11 @@ def test_motion_writes_a_png_of_its_run(graph, tmp_path):
     node = run_with_plot(graph, TimedOutAndBack, plot, goal_distance=0.5, pause=0.2)
     graph.step_until(lambda: node.done, sim_timeout=30.0)
     assert node.exit_code == 0
+    # Drawn in its shutdown_hook, once it has left the lockstep: drawn as it ended (0.5 s, 4 s
+    # on a loaded machine) it held everyone's clock, and a fleet's other robots failed.
+    assert not plot.exists()
+    node.shutdown_hook()
+    assert node.lockstep.left
     assert_png(plot, PLOT_SHAPE)
     # The trajectory drawn is the odometry of the run: out 0.5 m and back.
     xs = [x for x, _, _ in node.trajectory]
@@ -105,6 +110,7 @@ def test_a_run_that_failed_is_plotted_as_far_as_it_got(graph, tmp_path):
     node = run_with_plot(graph, TimedOutAndBack, failed, goal_distance=0.5, pause=0.2)
     graph.step_for(1.0)
     node.finish(EXIT_FAILED, 'No odometry for 1.2 s mid-motion')  # as its watchdog says it
+    node.shutdown_hook()
     assert_png(failed, PLOT_SHAPE)
 
 
@@ -125,6 +131,7 @@ def test_unwritable_plot_file_is_reported_not_fatal(graph, tmp_path):
     # Every answer is a parameter: nothing is read.
     ask_missing(node, read_line=lambda: '', write=lambda text: None)
     graph.step_until(lambda: node.done, sim_timeout=10.0)
+    node.shutdown_hook()
     assert node.exit_code == 0
     assert not (tmp_path / 'missing').exists()
 
@@ -141,6 +148,7 @@ def test_every_motion_plots_path_heading_and_speeds(graph, tmp_path, node_class,
     if node_class is RotateRobot:
         node.start(RotationRequest(90.0, 720.0, True))
     graph.step_until(lambda: node.done, sim_timeout=40.0)
+    node.shutdown_hook()
     assert node.exit_code == 0
     assert_png(plot, PLOT_SHAPE)
     # What was recorded for it: odometry (stamp, yaw, twist) and the commands, all on sim time
