@@ -30,7 +30,6 @@ import signal
 
 from motion_challenges import motion_fleet
 from motion_challenges.circle_back_and_forth import CircleBackAndForth
-from motion_challenges import motion_fleet
 from motion_challenges.motion_fleet import build_fleet
 from motion_challenges.motion_fleet import fleet_plan
 from motion_challenges.motion_fleet import motion_classes
