@@ -28,6 +28,7 @@ from motion_challenges.controllers import CommandLog
 from motion_challenges.controllers import NS
 from motion_challenges.controllers import odometry_fault
 from motion_challenges.controllers import Standstill
+from motion_challenges.plotting import PLOT_FILE
 from motion_challenges.plotting import write_plot
 from motion_challenges.robot_watch import MotionState
 from motion_challenges.robot_watch import RobotWatch
@@ -42,6 +43,7 @@ from sim_diffdrive.angles import YawAccumulator
 from sim_diffdrive.cdr import twist_message
 from sim_diffdrive.lockstep.participant import take_part
 from sim_diffdrive.parameters import declare
+from sim_diffdrive.parameters import frame_problem
 from sim_diffdrive.parameters import Spec
 from sim_diffdrive.runtime import destroyed_if_refused
 from sim_diffdrive.runtime import EXIT_FAILED
@@ -66,14 +68,12 @@ COMMON_PARAMETERS = (
          'sim time, when simulated time stood still this long with no word from the simulator '
          '[s, wall time].',
          low=0.0, high=3600.0, low_open=True, live=True),
-    Spec('plot_file', '',
-         'Write a PNG of the run here as it ends (a run cut off: as far as it got): the path '
-         'beside the heading and the speeds over time; empty = no plot. Needs matplotlib.',
-         live=True),
+    PLOT_FILE,
     Spec('stamped', False,
          'Publish geometry_msgs/TwistStamped, stamped with the node clock, instead of Twist '
          "(ros2_control's diff_drive_controller takes only TwistStamped)."),
-    Spec('frame_id', 'base_footprint', 'Frame of the commands (stamped).', live=True, frame=True),
+    Spec('frame_id', 'base_footprint', 'Frame of the commands (stamped).', live=True,
+         problem=frame_problem),
 )
 # How a motion's closing line starts when it reached its goal (closing_line finds it).
 DONE = 'Done in '

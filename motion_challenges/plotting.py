@@ -20,8 +20,10 @@ Draw a motion's run to a PNG: its path beside heading and speeds (matplotlib, im
 
 from collections import namedtuple
 import math
+import os
 
 import numpy as np
+from sim_diffdrive.parameters import Spec
 
 _NS = 1e9
 # Arrows of poses: a fraction of the path's extent, but never shorter than _MIN_ARROW [m], so
@@ -196,6 +198,30 @@ def plot_run(filename, trajectory, start=None, end=None, goal=None, title='', se
         pyplot.close(figure)
 
 
+def plot_file_problem(path):
+    """Return why a plot cannot be written to path, or None ('' asks for none)."""
+    folder = os.path.dirname(os.path.abspath(path))
+    if path and not os.path.isdir(folder):
+        return f'names a directory that does not exist ({folder})'
+    suffix = os.path.splitext(path)[1][1:]
+    if not suffix:  # nothing asked, or no format named (matplotlib writes a PNG)
+        return None
+    try:
+        from matplotlib.backend_bases import FigureCanvasBase
+    except ImportError:
+        return 'needs matplotlib: pip install matplotlib (or apt install python3-matplotlib)'
+    formats = FigureCanvasBase.get_supported_filetypes()
+    if suffix.lower() not in formats:
+        return 'must end in a format matplotlib writes: ' + ', '.join(sorted(formats))
+    return None
+
+
+PLOT_FILE = Spec(
+    'plot_file', '', 'Write a PNG of the run here as it ends (a run cut off: as far as it got): '
+    'the path beside the heading and the speeds over time; empty = no plot. Needs matplotlib.',
+    live=True, problem=plot_file_problem)
+
+
 def write_plot(node, ending, plot_file=None):
     """
     Write a motion node's run to its plot_file, if it has one and the motion began; log it.
@@ -203,7 +229,9 @@ def write_plot(node, ending, plot_file=None):
     However the run ended: its closing line's goal against the achieved pose (``node.plot_end``:
     the odometry at rest and that text) once it settled, else ``ending`` (why it stopped).
     """
-    plot_file = plot_file or node.params.plot_file  # a fleet's robot: a file of its own
+    # A fleet's robot: a file of its own.  (params.plot_file is checked as it is read, and
+    # its directory may be gone by now: savefig below says so.)
+    plot_file = plot_file or node.get_parameter('plot_file').value
     if not plot_file or node.start_ns is None:
         return
     end_odom, achieved = node.plot_end or (None, ending)

@@ -49,7 +49,8 @@ class Spec:
 
     A default of None declares it without a value, ``kind`` naming its type.  ``low``/``high``
     bound numbers (and each element of a number array), ``low_open`` excludes ``low``;
-    ``choices`` restricts strings, ``frame`` makes one a tf2 frame id (frame_problem);
+    ``choices`` restricts strings, ``problem(value)`` says why one is unusable, or None (say
+    frame_problem: a tf2 frame id);
     ``length`` fixes an array's size, ``items`` its elements'
     type (float or str); ``live`` lets it change while the node runs (else read-only).
     """
@@ -61,7 +62,7 @@ class Spec:
     high: float = None
     low_open: bool = False
     choices: tuple = ()
-    frame: bool = False
+    problem: object = None
     length: int = None
     kind: type = None
     live: bool = False
@@ -104,7 +105,7 @@ class Spec:
                 raise self._error(value, _MUST_BE[self.type_])
             if self.choices and value not in self.choices:
                 raise self._error(value, 'must be one of ' + ', '.join(self.choices))
-            if self.frame and (why := frame_problem(value)):
+            if self.problem and (why := self.problem(value)):
                 raise self._error(value, why)
             return value
         if self.type_ is list:

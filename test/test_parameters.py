@@ -20,6 +20,7 @@ import pytest
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sim_diffdrive.parameters import declare
+from sim_diffdrive.parameters import frame_problem
 from sim_diffdrive.parameters import ParameterError
 from sim_diffdrive.parameters import Spec
 from sim_diffdrive.sim.node import UnicycleSim
@@ -95,7 +96,7 @@ def test_a_misspelt_simulator_parameter_is_warned_about_and_leaves_the_default(
                                        ('base link', 'whitespace')])
 def test_a_frame_parameter_takes_only_what_tf2_takes(make_node, value, why):
     # A motion's frame_id took '' and '/base', which the simulator refuses for its frames.
-    frame = Spec('frame', 'base', 'A frame.', frame=True, live=True)
+    frame = Spec('frame', 'base', 'A frame.', problem=frame_problem, live=True)
     assert why in refusal(make_node, 'frame', value, specs=(frame,))
 
 

@@ -30,6 +30,7 @@ from nav_msgs.msg import Path
 import pytest
 from rclpy.parameter import Parameter
 from sim_diffdrive.harness import pose_of
+from sim_diffdrive.parameters import ParameterError
 from sim_diffdrive.runtime import EXIT_FAILED
 
 
@@ -114,26 +115,38 @@ def test_a_run_that_failed_is_plotted_as_far_as_it_got(graph, tmp_path):
     assert_png(failed, PLOT_SHAPE)
 
 
-def test_a_plot_file_matplotlib_cannot_write_ends_no_run_in_a_traceback(graph, tmp_path, capfd):
-    # 'run.txt': savefig raises ValueError, which from shutdown_hook made a Ctrl-C exit 1 and
-    # said the robot may not have been told to stop.
+def test_a_plot_file_that_cannot_be_written_is_refused_at_start_and_live(graph, tmp_path):
+    # Found out as the run ended, after the motion: 'Could not write plot_file', exit 0.
     pytest.importorskip('matplotlib')
-    node = run_with_plot(graph, CircleBackAndForth, tmp_path / 'run.txt')
-    graph.step_for(1.0)
-    node.shutdown_hook()
-    assert "Could not write plot_file: Format 'txt' is not supported" in capfd.readouterr().err
+
+    def circle(plot_file):
+        return CircleBackAndForth(context=graph.context, parameter_overrides=[
+            Parameter('plot_file', value=str(plot_file))])
+    with pytest.raises(ParameterError, match=r"'plot_file' names a directory that does not "
+                                             rf'exist \({tmp_path}/missing\)'):
+        circle(tmp_path / 'missing' / 'run.png')
+    with pytest.raises(ParameterError, match="'plot_file' must end in a format matplotlib "
+                                             'writes: .*pdf, .*png, .*svg'):
+        circle(tmp_path / 'run.txt')
+    node = graph.add(circle(tmp_path / 'run'))  # no format named: matplotlib writes a PNG
+    result, = node.set_parameters([Parameter('plot_file', value=str(tmp_path / 'run.txt'))])
+    assert not result.successful and 'format matplotlib writes' in result.reason
 
 
-def test_unwritable_plot_file_is_reported_not_fatal(graph, tmp_path):
+def test_a_plot_file_gone_by_the_end_is_reported_not_fatal(graph, tmp_path, capfd):
+    # A savefig that raises (its directory removed meanwhile) made a Ctrl-C exit 1 from
+    # shutdown_hook and said the robot may not have been told to stop.
     pytest.importorskip('matplotlib')
-    node = run_with_plot(graph, RotateRobot, tmp_path / 'missing' / 'run.png',
+    (tmp_path / 'gone').mkdir()
+    node = run_with_plot(graph, RotateRobot, tmp_path / 'gone' / 'run.png',
                          angular_speed_deg=90.0, angle_deg=45.0, clockwise=False)
+    (tmp_path / 'gone').rmdir()
     # Every answer is a parameter: nothing is read.
     ask_missing(node, read_line=lambda: '', write=lambda text: None)
     graph.step_until(lambda: node.done, sim_timeout=10.0)
     node.shutdown_hook()
     assert node.exit_code == 0
-    assert not (tmp_path / 'missing').exists()
+    assert 'Could not write plot_file: [Errno 2]' in capfd.readouterr().err
 
 
 @pytest.mark.parametrize('node_class,params', [
