@@ -103,6 +103,19 @@ def test_answers_pace_the_clock_and_its_timer_only_watches(graph, monkeypatch):
     assert graph.spin_until(lambda: clock.timer.timer_period_ns == 20_000_000, 5.0)
 
 
+def test_a_slow_simulator_says_it_is_there_between_its_steps(graph):
+    # At real_time_factor 0.01 a step takes 2 s of wall time: with nothing from the simulator
+    # meanwhile, every motion on sim time gave up after its odom_timeout (1 s), saying that
+    # simulated time stood still (is the simulator still running?).
+    sim = graph.sim(stepped=False, publish_clock=True, lockstep=True, real_time_factor=0.01)
+    driver = graph.node(Driver)
+    assert graph.spin_until(lambda: driver.lockstep.joined, 10.0)
+    rosters, now_ns = set(), sim.now_ns()
+    graph.spin_until(lambda: rosters.add(driver.lockstep.roster_wall) and False, 1.2)
+    assert sim.now_ns() - now_ns <= 20_000_000  # a step at most
+    assert len(rosters) >= 3  # about every ALIVE_S (0.25 s)
+
+
 def test_the_simulator_says_it_has_heard_no_stamped_command_yet_for_good(graph):
     # -1 for good on its stamped subscriptions: with it the ledger waits for a member's first
     # TwistStamped (test_handshake.py's owner test), not only for those after it.
