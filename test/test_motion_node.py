@@ -90,6 +90,19 @@ def test_without_a_robot_it_gives_up_start_timeout_after_the_answers(graph, capf
     assert said in capfd.readouterr().err
 
 
+def test_on_sim_time_beside_a_simulator_without_a_clock_it_names_the_clock(graph, capfd):
+    # A ROS 1 habit: use_sim_time against unicycle_sim without publish_clock.  The motion said
+    # it waited for odometry, while odometry came at 50 Hz.
+    graph.sim(stepped=False, publish_clock=False)
+    node = rotate_robot(graph, mode='odom', start_timeout=START_TIMEOUT)
+    node.start(RotationRequest(90.0, 45.0, False))
+    assert graph.spin_until(lambda: node.done, timeout=5.0)
+    assert node.exit_code == EXIT_FAILED and graph.odom() is not None
+    assert (f'start_timeout ({START_TIMEOUT:g} s) waiting for simulated time on /clock '
+            '(use_sim_time is true); does unicycle_sim run with -p publish_clock:=true? Nothing '
+            'moved.') in capfd.readouterr().err
+
+
 def test_a_simulator_in_lockstep_that_never_takes_it_in_is_named_not_taken_for_absent(
         graph, capfd):
     # On a link losing packets both ways, the simulator can learn of a motion seconds after
