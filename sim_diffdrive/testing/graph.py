@@ -30,7 +30,6 @@ import random
 import time
 import warnings
 
-from rclpy.clock import ClockType
 from rclpy.exceptions import InvalidHandle
 from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
@@ -486,14 +485,10 @@ def _overrides(params):
 
 def _warn_if_on_wall_time(node):
     """Warn about a node whose timers run on wall time: the graph's steps do not pace them."""
-    clocks = {timer.clock.clock_type for timer in node.timers if not timer.is_canceled()}
+    timed = any(not timer.is_canceled() for timer in node.timers)  # (node.timers: a generator)
     owns_a_clock = any(pub.msg_type is ClockMsg for pub in node.publishers)  # a free simulator
-    if clocks and not owns_a_clock and not node.get_parameter('use_sim_time').value:
+    if timed and not owns_a_clock and not node.get_parameter('use_sim_time').value:
         node.get_logger().warning(
             'On wall time (use_sim_time is false) in a SimGraph: its timers do not follow the '
             "graph's steps; build it with parameter_overrides=sim_time_params(), or add it "
             'with node()')
-    elif clocks - {ClockType.ROS_TIME}:
-        node.get_logger().warning(
-            f'A timer on {min(clocks - {ClockType.ROS_TIME}).name} in a SimGraph: it does not '
-            "follow the graph's steps; make it with the node's clock (create_timer's default)")
