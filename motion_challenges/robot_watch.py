@@ -122,6 +122,10 @@ class RobotWatch:
         if node.state not in (MotionState.RUNNING, MotionState.SETTLING):
             return
         went_back = f'Simulated time went back {-jump.delta.nanoseconds / _NS:.3f} s'
+        clock = node.resolve_topic_name('/clock')
+        owners = node_names(node.get_publishers_info_by_topic(clock))
+        if len(owners) > 1:  # another owner of time, or a restarted one's predecessor
+            went_back += f' ({", ".join(owners)} publish on {clock})'
         if node.needs_odom:
             self._distrust(went_back)
         else:  # a timed plan would wait for its clock to come round again and drive it twice

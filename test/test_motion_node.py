@@ -15,6 +15,7 @@
 """What every motion node does around its motion: waiting for the robot, states, giving up."""
 
 import math
+import re
 import time
 
 from motion_challenges.motion_node import MotionState
@@ -28,6 +29,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.serialization import serialize_message
 from rclpy.time import Time
+from rosgraph_msgs.msg import Clock as ClockMsg
 from sim_diffdrive.harness import angle_error
 from sim_diffdrive.lockstep.handshake import answer_topic
 from sim_diffdrive.lockstep.participant import ANSWER_QOS
@@ -216,3 +218,19 @@ def test_a_timed_motion_whose_simulator_restarts_stops_rather_than_drive_its_pla
         '(simulator restarted?)' in capfd.readouterr().err
     graph.step_for(0.5)
     assert graph.odom().twist.twist.linear.x == 0.0
+
+
+def test_time_sent_back_by_another_clock_publisher_names_it(graph, capfd):
+    # A second /clock publisher (a bag played with --clock, another simulator) was taken for a
+    # restart: 'simulator restarted?', where two nodes publishing on /clock said who.
+    graph.sim()
+    node = graph.node(TimedOutAndBack)
+    graph.step_for(3.0)
+    player = graph.add(Node('bag_player', context=graph.context))
+    clock = player.create_publisher(ClockMsg, '/clock', 10)
+    graph.step()  # it is discovered
+    clock.publish(ClockMsg(clock=Time(seconds=1).to_msg()))
+    assert graph.spin_until(lambda: node.done, 10.0)
+    assert node.exit_code == EXIT_FAILED
+    assert re.search(r'Simulated time went back 2\.\d+ s \(/bag_player, /unicycle_sim publish '
+                     r'on /clock\) mid-motion', capfd.readouterr().err)
