@@ -28,7 +28,7 @@ from motion_challenges.controllers import CommandLog
 from motion_challenges.controllers import NS
 from motion_challenges.controllers import odometry_fault
 from motion_challenges.controllers import Standstill
-from motion_challenges.plotting import PLOT_FILE
+from motion_challenges.plotting import plot_file_problem
 from motion_challenges.plotting import write_plot
 from motion_challenges.robot_watch import MotionState
 from motion_challenges.robot_watch import RobotWatch
@@ -68,14 +68,17 @@ COMMON_PARAMETERS = (
          'sim time, when simulated time stood still this long with no word from the simulator '
          '[s, wall time].',
          low=0.0, high=3600.0, low_open=True, live=True),
-    PLOT_FILE,
+    Spec('plot_file', '',
+         'Write a PNG of the run here as it ends (a run cut off: as far as it got): the path '
+         'beside the heading and the speeds over time; empty = no plot. Needs matplotlib.',
+         live=True, problem=plot_file_problem),
     Spec('stamped', False,
          'Publish geometry_msgs/TwistStamped, stamped with the node clock, instead of Twist '
          "(ros2_control's diff_drive_controller takes only TwistStamped)."),
     Spec('frame_id', 'base_footprint', 'Frame of the commands (stamped).', live=True,
          problem=frame_problem),
 )
-# How a motion's closing line starts when it reached its goal (closing_line finds it).
+# How a motion's closing line starts when it reached its goal.
 DONE = 'Done in '
 
 
@@ -98,18 +101,6 @@ def closing_for(sim_s, wall_s, achieved, measured, wait_for_odom):
                          f'robot without odometry: {achieved}')
     return EXIT_FAILED, (f'Stopped after {sim_s:.3f} s, but no odometry came after the stop: '
                          'where the robot ended is unknown (is the simulator still running?)')
-
-
-def closing_line(output):
-    """Return a motion's closing line ('Done in ...') from its output, or its last error line."""
-    lines = output.splitlines()
-    for line in reversed(lines):
-        if DONE in line:
-            return line
-    for line in reversed(lines):
-        if '[ERROR]' in line or 'Error' in line:
-            return line
-    return lines[-1] if lines else ''
 
 
 class MotionNode(Node):

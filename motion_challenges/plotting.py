@@ -23,7 +23,6 @@ import math
 import os
 
 import numpy as np
-from sim_diffdrive.parameters import Spec
 
 _NS = 1e9
 # Arrows of poses: a fraction of the path's extent, but never shorter than _MIN_ARROW [m], so
@@ -214,12 +213,6 @@ def plot_file_problem(path):
     if suffix.lower() not in formats:
         return 'must end in a format matplotlib writes: ' + ', '.join(sorted(formats))
     return None
-
-
-PLOT_FILE = Spec(
-    'plot_file', '', 'Write a PNG of the run here as it ends (a run cut off: as far as it got): '
-    'the path beside the heading and the speeds over time; empty = no plot. Needs matplotlib.',
-    live=True, problem=plot_file_problem)
 
 
 def write_plot(node, ending, plot_file=None):

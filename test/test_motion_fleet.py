@@ -34,7 +34,7 @@ from motion_challenges.motion_fleet import build_fleet
 from motion_challenges.motion_fleet import fleet_plan
 from motion_challenges.motion_fleet import motion_classes
 from motion_challenges.motion_fleet import MotionFleet
-from motion_challenges.motion_node import closing_line
+from motion_challenges.motion_node import DONE
 from motion_challenges.odom_out_and_back import OdomOutAndBack
 from motion_challenges.plans import out_and_back_end
 from motion_challenges.prompts import RotationRequest
@@ -115,6 +115,16 @@ def test_plan_refuses_what_cannot_run_and_names_the_parameter(robots, motions, w
 
 
 # -- in this process: build_fleet against the simulator ---------------------------------------
+
+
+def closing_line(output):
+    """Return a motion's closing line ('Done in ...') from its output, or its last error line."""
+    lines = output.splitlines()
+    for line in reversed(lines):
+        if DONE in line:
+            return line
+    return next((line for line in reversed(lines) if '[ERROR]' in line or 'Error' in line),
+                lines[-1] if lines else '')
 
 
 def initial_poses(robots):
