@@ -146,6 +146,12 @@ def test_distinct_frames_start(graph, namespace, params, expected):
     assert sim.robots[0].frames == expected
 
 
+def test_a_real_time_factor_without_publish_clock_is_said_to_do_nothing(graph, capfd):
+    graph.sim(stepped=False, publish_clock=False, real_time_factor=5.0)  # it was silent
+    assert ', in real time (real_time_factor 5 needs publish_clock:=true)' in \
+        capfd.readouterr().err
+
+
 def test_a_simulator_with_a_bad_frame_on_its_command_line_exits_2_naming_it(run_main):
     # Every refusal of a frame is tested in-process above: the executable's main() shows the
     # path from -p to exit 2 once, with the value that the command line hands over as one word

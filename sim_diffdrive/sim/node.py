@@ -193,7 +193,9 @@ class UnicycleSim(Node):
             + ((', publishing /clock as its caller steps it' if stepped else
                 f', publishing /clock at up to {p.real_time_factor:g}x real time'
                 + (' in lockstep' if p.lockstep else ' (free clock)'))
-               if p.publish_clock else '')
+               if p.publish_clock else ', in real time' + (
+                   f' (real_time_factor {p.real_time_factor:g} needs publish_clock:=true)'
+                   if p.real_time_factor != 1.0 else ''))
             + (f'; in the map {p.map_file} ({self.surroundings.grid.width} x '
                f'{self.surroundings.grid.height} cells of {self.surroundings.grid.resolution:g} '
                f'm), scans at {self.surroundings.scan_rate_hz:g} Hz' if self.surroundings
