@@ -16,6 +16,7 @@
 
 import math
 import time
+from types import SimpleNamespace
 
 from geometry_msgs.msg import Twist
 from motion_challenges.rotate_robot import RotateRobot
@@ -32,6 +33,7 @@ from sim_diffdrive.cdr import string_message
 from sim_diffdrive.dds_teardown import held_context
 from sim_diffdrive.harness import isolated_domain_id
 from sim_diffdrive.lockstep.counter import MessageCounter
+from sim_diffdrive.lockstep.handshake import Roster
 from sim_diffdrive.lockstep.participant import ANSWER_QOS
 from sim_diffdrive.lockstep.participant import take_part
 from sim_diffdrive.sim import clock as clock_module
@@ -154,6 +156,20 @@ def test_answer_or_leave_after_rclpy_shut_down_raise_nothing():
         assert lockstep.leave() is False and lockstep.left
         for each in (member.node, node, owner):
             each.destroy_node()
+
+
+def test_a_node_whose_simulator_started_again_is_told_once(ros_context):
+    # A user's node in lockstep saw only 'No longer in lockstep' and 'Taking part' in the same
+    # millisecond after a restart, and went on planning with its old end time.
+    node = on_sim_time(ros_context, 'planner')
+    lockstep, warned = take_part(node), []
+    node.get_logger = lambda: SimpleNamespace(warning=warned.append, info=lambda text: None)
+    for step_ns in (3_000_000_000, 3_020_000_000, 160_000_000, 180_000_000):
+        lockstep._on_roster(String(data=Roster('/sim', step_ns).encode()))
+    assert warned == ['Simulated time went back from 3.020 s to 0.160 s (/sim restarted?): times '
+                      'this node took from the old clock lie ahead of the new one']
+    lockstep.leave()
+    node.destroy_node()
 
 
 def test_a_node_whose_simulator_stops_listening_says_so_once(capfd):

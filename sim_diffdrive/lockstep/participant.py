@@ -320,8 +320,13 @@ class Participant:
             roster = Roster.decode(msg.data)
         except ValueError:
             return
-        self.roster = roster
+        last, self.roster = self.roster, roster
         self.roster_wall = time.monotonic()
+        if last is not None and roster.step_ns < last.step_ns:  # said once: rosters then go on
+            self.node.get_logger().warning(
+                f'Simulated time went back from {last.step_ns / _NS:.3f} s to '
+                f'{roster.step_ns / _NS:.3f} s ({roster.owner} restarted?): times this node '
+                'took from the old clock lie ahead of the new one')
         self.owner = roster.owner
         dropped_ns = roster.dropped.get(self.id)
         if dropped_ns is not None and dropped_ns != self.dropped_ns:
