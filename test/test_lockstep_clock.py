@@ -33,7 +33,9 @@ from sim_diffdrive.cdr import string_message
 from sim_diffdrive.dds_teardown import held_context
 from sim_diffdrive.harness import isolated_domain_id
 from sim_diffdrive.lockstep.counter import MessageCounter
+from sim_diffdrive.lockstep.handshake import Answer
 from sim_diffdrive.lockstep.handshake import Roster
+from sim_diffdrive.lockstep.owner import LockstepOwner
 from sim_diffdrive.lockstep.participant import ANSWER_QOS
 from sim_diffdrive.lockstep.participant import take_part
 from sim_diffdrive.sim import clock as clock_module
@@ -156,6 +158,32 @@ def test_answer_or_leave_after_rclpy_shut_down_raise_nothing():
         assert lockstep.leave() is False and lockstep.left
         for each in (member.node, node, owner):
             each.destroy_node()
+
+
+def test_one_silent_since_an_earlier_step_is_gone_without_a_second_hold():
+    # A user's node stopped by rclpy's SIGINT handler right after it answered held the clock
+    # for two lockstep_timeouts: for a message it had not heard, then for its missing answer.
+    now, warned = [0], []
+    sim = SimpleNamespace(get_fully_qualified_name=lambda: '/sim', now_ns=lambda: now[0],
+                          params=SimpleNamespace(lockstep_timeout=0.5),
+                          get_logger=lambda: SimpleNamespace(warning=warned.append))
+    owner = LockstepOwner(sim, '/clock')
+    owner._roster_pub = SimpleNamespace(publish=lambda msg: None)
+    ledger, wall = owner.ledger, time.monotonic()
+    for pid, heard_wall in (('/sim#owner', wall), ('/gone#1', wall - 0.6), ('/live#1', wall)):
+        ledger.receive(Answer(pid, pid[:-2], 0), 0, wall_s=heard_wall)
+    ledger.next_step(0)
+    now[0] = 20_000_000
+    ledger.receive(Answer('/sim#owner', '/sim', now[0]), now[0], wall_s=wall)
+    # The new step has waited 10 ms of its 0.5 s: the one silent for 0.6 s goes at once.
+    assert owner.may_step(wall, wall - 0.01, 0.02, 0.002)[0] == 0  # /live is waited for
+    assert set(ledger.dropped) == {'/gone#1'}
+    assert warned == ['Lockstep: nothing heard from /gone for 0.5 s (its last answer: 0.000 s); '
+                      'going on without it']
+    # Held past lockstep_timeout by one that still answers: waited for, and said so.
+    assert owner.may_step(wall, wall - 0.6, 0.02, 0.002)[0] == 0
+    assert len(warned) == 2 and warned[1].startswith('Lockstep: holding the clock for /live')
+    assert warned[1].endswith('(it still answers, so it is waited for)')
 
 
 def test_a_node_whose_simulator_started_again_is_told_once(ros_context):

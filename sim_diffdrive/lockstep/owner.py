@@ -144,7 +144,13 @@ class LockstepOwner:
         resend = self._publish_roster(waiting, wall, alive=True)
         if waiting:
             held = waited - self._stalled_s  # while the simulator ran, and could hear
-            if held <= sim.params.lockstep_timeout or not self._give_up(waiting, held):
+            if held <= sim.params.lockstep_timeout:
+                # One silent that long already (it answered a step before this one, then went
+                # quiet: stopped by rclpy's SIGINT handler) goes now, not a whole hold later.
+                if self._drop_silent():
+                    self._waiting = None
+                return 0, resend
+            if not self._give_up(waiting, held):
                 return 0, resend
         if waited >= budget_s:
             self._step_s += _STEP_WEIGHT * (waited - self._step_s)
@@ -266,6 +272,18 @@ class LockstepOwner:
         names = sorted(member.answer.node for member in senders)
         return [] if present.intersection(names) else names
 
+    def _drop_silent(self):
+        """Go on without each participant silent for lockstep_timeout; return whether any."""
+        ledger, timeout = self.ledger, self.sim.params.lockstep_timeout
+        silent = ledger.silent(time.monotonic(), timeout)
+        for pid in silent:
+            answer = ledger.members[pid].answer
+            self.sim.get_logger().warning(
+                f'Lockstep: nothing heard from {answer.node} for {timeout:g} s (its last answer: '
+                f'{answer.step_ns / _NS:.3f} s); going on without it')
+            ledger.drop(pid, self.sim.now_ns())
+        return bool(silent)
+
     def _give_up(self, waiting, held_s):
         """
         After lockstep_timeout: drop the silent, forgive what the live have not heard.
@@ -279,13 +297,8 @@ class LockstepOwner:
         ledger = self.ledger
         logger = self.sim.get_logger()
         timeout = self.sim.params.lockstep_timeout
-        now_ns = self.sim.now_ns()
-        wall = time.monotonic()
-        for pid in ledger.silent(wall, timeout):
-            answer = ledger.members[pid].answer
-            logger.warning(f'Lockstep: nothing heard from {answer.node} for {timeout:g} s (its '
-                           f'last answer: {answer.step_ns / _NS:.3f} s); going on without it')
-            ledger.drop(pid, now_ns)
+        now_ns, wall = self.sim.now_ns(), time.monotonic()
+        self._drop_silent()
         held, undiscovered = [], []
         for reason in waiting:
             pid, topic, _ = reason
