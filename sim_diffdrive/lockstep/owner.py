@@ -144,13 +144,7 @@ class LockstepOwner:
         resend = self._publish_roster(waiting, wall, alive=True)
         if waiting:
             held = waited - self._stalled_s  # while the simulator ran, and could hear
-            if held <= sim.params.lockstep_timeout:
-                # One silent that long already (it answered a step before this one, then went
-                # quiet: stopped by rclpy's SIGINT handler) goes now, not a whole hold later.
-                if self._drop_silent():
-                    self._waiting = None
-                return 0, resend
-            if not self._give_up(waiting, held):
+            if held <= sim.params.lockstep_timeout or not self._give_up(waiting, held):
                 return 0, resend
         if waited >= budget_s:
             self._step_s += _STEP_WEIGHT * (waited - self._step_s)
