@@ -198,6 +198,8 @@ def test_a_node_whose_simulator_started_again_is_told_once(ros_context):
     node.get_logger = lambda: SimpleNamespace(warning=warned.append, info=lambda text: None)
     for step_ns in (3_000_000_000, 3_020_000_000, 160_000_000, 180_000_000):
         lockstep._on_roster(String(data=Roster('/sim', step_ns).encode()))
+        # Another simulator on the same clock (its rosters interleave): not a restart.
+        lockstep._on_roster(String(data=Roster('/other_sim', 10_000_000).encode()))
     assert warned == ['Simulated time went back from 3.020 s to 0.160 s (/sim restarted?): times '
                       'this node took from the old clock lie ahead of the new one']
     lockstep.leave()

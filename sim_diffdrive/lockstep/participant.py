@@ -61,6 +61,7 @@ class Participant:
         self.joined = False
         # The latest roster from the clock owner, and when it came [s, monotonic].
         self.roster = self.roster_wall = None
+        self._roster_steps = {}  # owner -> the time of its latest roster [ns]
         self._last = None
         self._last_clock_messages = 0
         self.left = False
@@ -320,11 +321,14 @@ class Participant:
             roster = Roster.decode(msg.data)
         except ValueError:
             return
-        last, self.roster = self.roster, roster
+        self.roster = roster
         self.roster_wall = time.monotonic()
-        if last is not None and roster.step_ns < last.step_ns:  # said once: rosters then go on
+        # Per owner: two on one clock (warned about apart) interleave their rosters.
+        last_ns = self._roster_steps.get(roster.owner)
+        self._roster_steps[roster.owner] = roster.step_ns
+        if last_ns is not None and roster.step_ns < last_ns:  # once: rosters go on from there
             self.node.get_logger().warning(
-                f'Simulated time went back from {last.step_ns / _NS:.3f} s to '
+                f'Simulated time went back from {last_ns / _NS:.3f} s to '
                 f'{roster.step_ns / _NS:.3f} s ({roster.owner} restarted?): times this node '
                 'took from the old clock lie ahead of the new one')
         self.owner = roster.owner
