@@ -157,7 +157,6 @@ class MotionFleet(Node):
             self.params = declare(self, PARAMETERS)
             self.plan = fleet_plan(self.params.robots, self.params.motions, self.get_namespace())
         self.motions = []
-        self.plot_files = {}  # motion -> the file it plots to, where robots share plot_file
         # On sim time the fleet is one participant of the lockstep: one answer per step for
         # all its motions, not one each (each costs the simulator a message and a look).
         self.lockstep = take_part(self) if self.get_parameter('use_sim_time').value else None
@@ -171,12 +170,8 @@ class MotionFleet(Node):
             # simulator need not wait for this node.
             self.lockstep.leave(ack_timeout=0.0)
             self.lockstep = None
-        shared = Counter(node.params.plot_file for node in self.motions)
         for (robot, _, motion), node in zip(self.plan, self.motions):
             node.stop_ack_timeout, node.plots_itself = 0.0, False
-            if node.params.plot_file and shared[node.params.plot_file] > 1:  # -p for them all
-                path = Path(node.params.plot_file)
-                self.plot_files[node] = str(path.with_name(f'{path.stem}_{robot}{path.suffix}'))
             self.get_logger().info(
                 f'{robot}: {motion} as {node.get_fully_qualified_name()} (publishes '
                 f'{node.cmd_pub.topic_name}, reads {node.resolve_topic_name("odom")})')
@@ -210,8 +205,16 @@ class MotionFleet(Node):
                  for (robot, _, motion), node in zip(self.plan, self.motions)]
         if ended:
             self.get_logger().info('Motions: ' + '; '.join(ended))
-        for node in self.motions:  # the simulator no longer waits for this process
-            write_plot(node, node.ending, self.plot_files.get(node))
+        # The simulator no longer waits for this process.  A file that several robots were
+        # given (-p for them all) gets each robot's name: fleet.png -> fleet_site_a_robot1.png.
+        files = [node.get_parameter('plot_file').value for node in self.motions]
+        shared = Counter(files)
+        for (robot, _, _), node, plot_file in zip(self.plan, self.motions, files):
+            if plot_file and shared[plot_file] > 1:
+                path = Path(plot_file)
+                plot_file = str(path.with_name(f"{path.stem}_{robot.replace('/', '_')}"
+                                               f'{path.suffix}'))
+            write_plot(node, node.ending, plot_file)
 
     def _answered_for(self, node):
         """Return whether node takes part in lockstep through the fleet's own participant."""

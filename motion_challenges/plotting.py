@@ -224,7 +224,7 @@ def write_plot(node, ending, plot_file=None):
     """
     # A fleet's robot: a file of its own.  (params.plot_file is checked as it is read, and
     # its directory may be gone by now: savefig below says so.)
-    plot_file = plot_file or node.get_parameter('plot_file').value
+    plot_file = node.get_parameter('plot_file').value if plot_file is None else plot_file
     if not plot_file or node.start_ns is None:
         return
     end_odom, achieved = node.plot_end or (None, ending)

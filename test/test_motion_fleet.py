@@ -41,6 +41,7 @@ from motion_challenges.prompts import RotationRequest
 from motion_challenges.rotate_robot import RotateRobot
 from motion_challenges.timed_out_and_back import TimedOutAndBack
 import pytest
+from rclpy.parameter import Parameter
 from sim_diffdrive.dds_teardown import held_context
 from sim_diffdrive.harness import angle_error
 from sim_diffdrive.harness import is_moving
@@ -228,22 +229,29 @@ def test_motions_on_the_fleets_clock_answer_through_it_and_others_on_their_own(
                 assert node.lockstep.participant is fleet.lockstep
 
 
-def test_a_fleet_plots_each_robot_to_a_file_of_its_own_after_its_goodbye(tmp_path, monkeypatch):
+@pytest.mark.parametrize('live,files', [
+    (None, ['fleet_site_a_robot1.png', 'fleet_robot2.png']),
+    ('', ['fleet.png', '']),  # set live on robot2: no plot, and robot1's file is its own
+])
+def test_a_fleet_plots_each_robot_to_a_file_of_its_own_after_its_goodbye(
+        tmp_path, monkeypatch, live, files):
     # -p plot_file:= reaches every motion: each robot's plot overwrote the one before.  And a
     # motion drew its plot as it ended, in the fleet's lockstep: it held every robot's clock,
     # past a lockstep_timeout of 0.3 s, and the others failed.
     written = []
     monkeypatch.setattr(motion_fleet, 'write_plot', lambda node, ending, path: written.append(
         (node.get_namespace(), path, fleet.lockstep.left)))
-    with fleet_in(['--ros-args', '-p', 'robots:=[robot1,robot2]', '-p', 'use_sim_time:=true',
-                   '-p', 'motions:=[timed_out_and_back]', '-p',
+    with fleet_in(['--ros-args', '-p', 'robots:=[site_a/robot1,robot2]', '-p',
+                   'use_sim_time:=true', '-p', 'motions:=[timed_out_and_back]', '-p',
                    f'plot_file:={tmp_path}/fleet.png']) as (fleet, nodes):
+        if live is not None:
+            nodes[1].set_parameters([Parameter('plot_file', value=live)])
         for node in nodes:
             node.shutdown_hook()
         assert written == []
         fleet.shutdown_hook()
-    assert written == [(f'/{robot}', f'{tmp_path}/fleet_{robot}.png', True)
-                       for robot in ('robot1', 'robot2')]
+    assert written == [(namespace, f'{tmp_path}/{name}' if name else '', True)
+                       for namespace, name in zip(('/site_a/robot1', '/robot2'), files)]
 
 
 def test_a_namespace_given_to_the_process_comes_before_every_robots():
