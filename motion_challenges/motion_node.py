@@ -138,7 +138,7 @@ class MotionNode(Node):
         self.commands = CommandLog()
         self._standstill = Standstill()
         self.state = MotionState.WAITING
-        self.done = self._primed = False
+        self.done = self._primed = self._plotted = False
         self.odom = self.start_odom = self.exit_code = self.start_ns = None
         self._stop_ns = self._wall_begun = self._tick_timer = self.plot_end = None
         self.ending = 'stopped before the end'  # until finish() says how it ended (its plot)
@@ -186,6 +186,8 @@ class MotionNode(Node):
         for timer in (self._tick_timer, self._watchdog):
             if timer is not None:
                 timer.cancel()
+        if not (self.lockstep and self.lockstep.owner_present):  # no clock waits for this node
+            self._plot()
 
     def shutdown_hook(self):
         """Leave the robot stopped, whatever ended the run; then plot it (unless in a fleet)."""
@@ -211,7 +213,11 @@ class MotionNode(Node):
         else:
             self.get_logger().warning('ROS was shut down before the final stop could be sent '
                                       '(a stop sent before stands)')
-        if self.plots_itself:
+        self._plot()  # once the simulator no longer waits for this node
+
+    def _plot(self):
+        if self.plots_itself and not self._plotted:
+            self._plotted = True
             write_plot(self, self.ending)
 
     def now_ns(self):

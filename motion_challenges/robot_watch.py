@@ -152,7 +152,8 @@ class RobotWatch:
             if not lockstep.counted_on(cmd_topic):
                 return f'the node that drives on {cmd_topic} to join the lockstep'
         if node.sim_time and node.now_ns() == 0:  # before odometry: it waits for the clock
-            return 'simulated time on /clock (use_sim_time is true)'
+            clock = node.resolve_topic_name('/clock')
+            return f'simulated time on {clock} (use_sim_time is true)'
         if node.odom is None and (node.needs_odom or node.params.wait_for_odom
                                   or node.count_publishers(self._odom_topic)):
             # Without wait_for_odom open loop needs none, but where there is some, the closing
@@ -275,8 +276,9 @@ class RobotWatch:
             hint = ('it runs but has not heard this node yet (a slow or lossy link: raise '
                     'start_timeout; a process killed while it ran on this machine can leave '
                     'it deaf to new ones: restart it).' if 'lockstep' in missing else
-                    'does unicycle_sim run with -p publish_clock:=true?' if '/clock' in missing
-                    else 'is the robot (or unicycle_sim) running?')
+                    'does unicycle_sim run with -p publish_clock:=true?'
+                    if missing.startswith('simulated time') else
+                    'is the robot (or unicycle_sim) running?')
             # The start_timeout given, not the watchdog's moment (up to WATCHDOG_PERIOD_S on).
             node.finish(EXIT_FAILED, f'Gave up after start_timeout '
                                      f'({node.params.start_timeout:g} s) waiting for {missing}; '
