@@ -62,7 +62,8 @@ DOMAIN_BLOCK = 4
 # Where runs lock their blocks of domains: one place for the whole machine.
 DOMAIN_LOCKS = '/tmp/sim_graph_domains'
 _claims = []  # the lock files (descriptors) this process holds (claim_domains)
-_open_domains = []  # those of the SimGraphs open in this process on contexts of their own
+_open_domains = []  # those of the SimGraphs open in this process
+_spares = []  # the domains of blocks this process claimed for a graph beside another
 _SIM_PARAMETERS = [spec.name for spec in PARAMETERS] + ['use_sim_time']
 
 
@@ -258,7 +259,7 @@ class Lockstep:
             for answer in self._answers.values():
                 answer.step_ns = now_ns  # each node answers at once: settled() checks the rest
             if not self.spin_until(lambda: self.settled(now_ns), timeout):
-                waiting = '; '.join(self._unsettled(now_ns))
+                waiting = '; '.join(self._unsettled(now_ns)) or 'nothing (settled just then)'
                 raise RuntimeError(f'graph did not settle at t={now_ns / _NS:.3f} s within '
                                    f'{timeout:g} s: waiting for {waiting}')
 
@@ -286,8 +287,7 @@ def isolated_domain_id():
 
     The first call claims a block (claim_domains) and stores its first domain in
     SIM_GRAPH_DOMAIN_ID (set that to pin one); child processes get it as ROS_DOMAIN_ID.  A
-    pytest-xdist worker gwN given a domain (pinned, or the block its run claimed) takes that
-    domain + N, so that no two workers share one.
+    pytest-xdist worker gwN given a domain (pinned, or its run's block) takes it + N.
     """
     given = os.environ.get(DOMAIN_VARIABLE)
     domain = claim_domains() if given is None else _domain_number(given)
@@ -303,10 +303,7 @@ def isolated_domain_id():
 
 def _domain_number(value, how=''):
     """Return value as a domain, or ValueError naming SIM_GRAPH_DOMAIN_ID and the valid range."""
-    try:
-        domain = int(value)
-    except ValueError:
-        domain = -1
+    domain = int(value) if str(value).isdigit() else -1
     if not 0 <= domain <= MAX_DOMAIN_ID:
         raise ValueError(f'{DOMAIN_VARIABLE}={os.environ[DOMAIN_VARIABLE]}{how}: a ROS domain is '
                          f'a whole number from 0 to {MAX_DOMAIN_ID} (Fast DDS)')
@@ -348,6 +345,14 @@ def claim_domains(directory=None):
     return starts[0]
 
 
+def _spare_domain():
+    """Return a domain no graph of this process is open on, of a block this process holds."""
+    if not (free := [d for d in _spares if d not in _open_domains]):
+        start = claim_domains()
+        _spares.extend(free := list(range(start, start + DOMAIN_BLOCK)))
+    return free[0]
+
+
 class SimGraph(Lockstep):
     """
     A simulator and the nodes under test in this process, stepped in lockstep.
@@ -362,13 +367,13 @@ class SimGraph(Lockstep):
         self._own = contextlib.ExitStack()
         if context is None:
             domain = isolated_domain_id()
-            if domain in _open_domains:  # another graph is open: one would hear the other
-                domain = claim_domains()
-            _open_domains.append(domain)
-            self._own.callback(_open_domains.remove, domain)
+            if domain in _open_domains:  # another graph is open on it: one would hear the other
+                domain = _spare_domain()  # (processes started meanwhile are on the first's)
             context = self._own.enter_context(held_context(domain_id=domain))
         super().__init__(executor_class(context=context))
         self.context = context
+        _open_domains.append(context.get_domain_id())
+        self._own.callback(_open_domains.remove, context.get_domain_id())
         self._probes = {}  # robot name (None: the one on odom) -> listening Probe
         self._scans = {}  # robot name -> its latest LaserScan (a deque of one)
 
