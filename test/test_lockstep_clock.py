@@ -119,7 +119,9 @@ def test_a_slow_simulator_says_it_is_there_between_its_steps(graph):
     rosters, now_ns = set(), sim.now_ns()
     graph.spin_until(lambda: rosters.add(one.lockstep.roster_wall) and False, 2.2)
     assert 20_000_000 <= sim.now_ns() - now_ns <= 60_000_000  # a step or so a second
-    assert len(rosters) >= 6  # about every ALIVE_S (0.25 s)
+    # About every ALIVE_S (0.25 s): 8 or 9; one every 0.5 s once (a look just after a roster
+    # took the next tick's turn), none without (nothing changed: no roster).
+    assert len(rosters) >= 4
     assert sim.clock.owner.ledger.dropped == {}
 
 

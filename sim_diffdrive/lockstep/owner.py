@@ -231,8 +231,10 @@ class LockstepOwner:
         ledger = self.ledger
         now = time.monotonic()
         resend = bool(waiting) and now - max(wall, self._resent_wall) >= self._resend_s
+        # Half ALIVE_S: the clock's timer looks every ALIVE_S at most, and a look a moment
+        # after a roster (an answer came) must not leave the next tick without one.
         if ledger.version == self._roster_version and not resend and not (
-                alive and now - self._roster_wall >= ALIVE_S):
+                alive and now - self._roster_wall >= ALIVE_S / 2):
             return False
         self._roster_wall = now
         if resend:
