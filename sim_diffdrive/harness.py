@@ -14,8 +14,8 @@
 
 """Everything a test of robot code needs, in one import: the graph, the probe, the processes."""
 
-from sim_diffdrive.testing.graph import DOMAIN_VARIABLE
-from sim_diffdrive.testing.graph import isolated_domain_id
+from sim_diffdrive.testing.domains import DOMAIN_VARIABLE
+from sim_diffdrive.testing.domains import isolated_domain_id
 from sim_diffdrive.testing.graph import SimGraph
 from sim_diffdrive.testing.probe import angle_error
 from sim_diffdrive.testing.probe import is_moving

@@ -35,7 +35,7 @@ from sim_diffdrive.dds_teardown import held_context
 from sim_diffdrive.harness import DOMAIN_VARIABLE
 from sim_diffdrive.harness import isolated_domain_id
 from sim_diffdrive.harness import SimGraph
-from sim_diffdrive.testing.graph import DOMAIN_BLOCK
+from sim_diffdrive.testing.domains import DOMAIN_BLOCK
 
 if int(os.environ.get('PYTEST_XDIST_WORKER', 'gw0')[2:]) >= DOMAIN_BLOCK:
     # pytest -n: worker gwN on the domain N after the first of the block its run claimed (one

@@ -34,9 +34,9 @@ from sim_diffdrive.harness import SimGraph
 from sim_diffdrive.harness import start_python
 from sim_diffdrive.harness import stop
 from sim_diffdrive.harness import stop_all
-import sim_diffdrive.testing.graph as graph_module
-from sim_diffdrive.testing.graph import claim_domains
-from sim_diffdrive.testing.graph import DOMAIN_BLOCK
+import sim_diffdrive.testing.domains as domains
+from sim_diffdrive.testing.domains import claim_domains
+from sim_diffdrive.testing.domains import DOMAIN_BLOCK
 
 # Waits for Ctrl-C, says so, and exits 0 (as the executables do).
 INTERRUPTIBLE = """
@@ -144,10 +144,10 @@ def test_a_child_hears_ctrl_c_even_when_this_process_ignores_it():
 
 def test_runs_on_one_machine_never_share_a_block_of_domains(tmp_path):
     # Another run (a process) holds a block; this one claims every other block, then shares.
-    other = start_python('import time\nfrom sim_diffdrive.testing.graph import claim_domains\n'
+    other = start_python('import time\nfrom sim_diffdrive.testing.domains import claim_domains\n'
                          f'print(claim_domains({str(tmp_path)!r}), flush=True)\n'
                          'time.sleep(30)')
-    held = len(graph_module._claims)
+    held = len(domains._claims)
     try:
         deadline = time.monotonic() + 20.0
         while not other.output().strip() and time.monotonic() < deadline:
@@ -160,15 +160,15 @@ def test_runs_on_one_machine_never_share_a_block_of_domains(tmp_path):
         with pytest.warns(RuntimeWarning,
                           match=r'sharing domain .* \(set SIM_GRAPH_DOMAIN_ID'):
             assert claim_domains(str(tmp_path)) in claimed + [others]
-        assert len(graph_module._claims) == held + 24
+        assert len(domains._claims) == held + 24
         # A claim ends with the process that holds it, however it ends.
         stop(other, signal.SIGKILL)
         assert claim_domains(str(tmp_path)) == others
     finally:
         stop(other, signal.SIGKILL)
-        for lock in graph_module._claims[held:]:
+        for lock in domains._claims[held:]:
             os.close(lock)
-        del graph_module._claims[held:]
+        del domains._claims[held:]
 
 
 @pytest.mark.parametrize('given,worker,domain', [
@@ -180,33 +180,33 @@ def test_a_given_domain_is_each_pytest_workers_own_and_checked(
         monkeypatch, given, worker, domain):
     # SIM_GRAPH_DOMAIN_ID pinned with pytest -n 4 put every worker on it, and the graphs of
     # one heard the others'; 300 ended pytest without a word (Fast DDS exits).
-    for name in ('ROS_DOMAIN_ID', 'ROS_AUTOMATIC_DISCOVERY_RANGE', graph_module.WORKER_VARIABLE):
+    for name in ('ROS_DOMAIN_ID', 'ROS_AUTOMATIC_DISCOVERY_RANGE', domains.WORKER_VARIABLE):
         monkeypatch.delenv(name, raising=False)
-    monkeypatch.setenv(graph_module.DOMAIN_VARIABLE, given)
+    monkeypatch.setenv(domains.DOMAIN_VARIABLE, given)
     if worker:
         monkeypatch.setenv('PYTEST_XDIST_WORKER', worker)
     else:
         monkeypatch.delenv('PYTEST_XDIST_WORKER', raising=False)
     if isinstance(domain, str):
         with pytest.raises(ValueError, match=domain):
-            graph_module.isolated_domain_id()
+            domains.isolated_domain_id()
         return
-    assert graph_module.isolated_domain_id() == domain
-    assert graph_module.isolated_domain_id() == domain  # once: its children's is the same
-    assert os.environ['ROS_DOMAIN_ID'] == os.environ[graph_module.DOMAIN_VARIABLE] == str(domain)
+    assert domains.isolated_domain_id() == domain
+    assert domains.isolated_domain_id() == domain  # once: its children's is the same
+    assert os.environ['ROS_DOMAIN_ID'] == os.environ[domains.DOMAIN_VARIABLE] == str(domain)
 
 
 def test_graphs_open_at_once_are_on_domains_of_their_own(graph):
     # A second graph took the first's domain: the test's node drove the other's robot.
-    def domains():
+    def open_graphs():
         with SimGraph() as one, SimGraph() as two:
             return {graph.context.get_domain_id(), one.context.get_domain_id(),
                     two.context.get_domain_id()}
-    held = len(graph_module._claims)
-    first = domains()
-    assert len(first) == 3 and graph_module.isolated_domain_id() in first
+    held = len(domains._claims)
+    first = open_graphs()
+    assert len(first) == 3 and domains.isolated_domain_id() in first
     # Again: the block claimed for them is this process's, and serves again (25 in all).
-    assert domains() == first and len(graph_module._claims) <= held + 1
+    assert open_graphs() == first and len(domains._claims) <= held + 1
 
 
 def test_a_graph_without_a_stepped_simulator_removes_nodes(ros_context):
@@ -306,6 +306,21 @@ def test_a_graphs_mistakes_are_named(graph, capfd):
     with pytest.raises(RuntimeError, match='/steady_timer was destroyed in the graph: take a '
                                            r'node out with remove\(node\)'):
         graph.step()
+
+
+def test_a_topic_nobody_in_the_graph_hears_is_named_as_its_node_joins(graph, capfd):
+    # A newcomer's controller published on cmd_vell: the robot never moved, and the failing
+    # test said only 'assert 0.0 > 0.9'.  pytest shows the line with the failure.
+    graph.sim()
+    node = graph.add(Node('controller', context=graph.context,
+                          parameter_overrides=graph.sim_time_params()))
+    for topic in ('cmd_vell', 'cmd_vel'):
+        node.create_publisher(Twist, topic, 10)
+    graph.step()
+    err = capfd.readouterr().err
+    assert '[controller]: Nothing in the graph subscribes to /cmd_vell, which it publishes (a ' \
+        'topic named wrong?)' in err
+    assert err.count('Nothing in the graph subscribes') == 1  # its nodes: on what they hear
 
 
 def test_waiting_for_odometry_that_never_comes_says_so_with_the_process_log(graph):

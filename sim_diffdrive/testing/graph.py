@@ -23,12 +23,8 @@ due, so an answer lands on its step whatever the machine's load.
 import collections
 import contextlib
 import difflib
-import fcntl
 import itertools
-import os
-import random
 import time
-import warnings
 
 from rclpy.exceptions import InvalidHandle
 from rclpy.experimental import EventsExecutor
@@ -41,10 +37,13 @@ from sim_diffdrive.dds_teardown import held_context
 from sim_diffdrive.lockstep.counter import clock_topic
 from sim_diffdrive.lockstep.counter import MessageCounter
 from sim_diffdrive.lockstep.handshake import Answer
+from sim_diffdrive.lockstep.handshake import answer_topic
 from sim_diffdrive.lockstep.handshake import StepLedger
 from sim_diffdrive.sim.clock import SteppedClock
 from sim_diffdrive.sim.node import PARAMETERS
 from sim_diffdrive.sim.node import UnicycleSim
+from sim_diffdrive.testing.domains import isolated_domain_id
+from sim_diffdrive.testing.domains import spare_domain
 from sim_diffdrive.testing.probe import pose_of
 from sim_diffdrive.testing.probe import Probe
 
@@ -52,18 +51,7 @@ _NS = 1_000_000_000
 # Simulated seconds per wall second of a simulator started by sim(lockstep=False): fast, with a
 # wide margin for a command to cross the graph before the next clock step.
 FREE_REAL_TIME_FACTOR = 10.0
-DOMAIN_VARIABLE = 'SIM_GRAPH_DOMAIN_ID'
-# The pytest-xdist worker whose domain SIM_GRAPH_DOMAIN_ID already is (isolated_domain_id).
-WORKER_VARIABLE = 'SIM_GRAPH_DOMAIN_WORKER'
-# Fast DDS's highest: a higher domain's ports pass 65535, and the process exits without a word.
-MAX_DOMAIN_ID = 232
-# Domains a run claims at once: one for each of up to this many pytest workers.
-DOMAIN_BLOCK = 4
-# Where runs lock their blocks of domains: one place for the whole machine.
-DOMAIN_LOCKS = '/tmp/sim_graph_domains'
-_claims = []  # the lock files (descriptors) this process holds (claim_domains)
 _open_domains = []  # those of the SimGraphs open in this process
-_spares = []  # the domains of blocks this process claimed for a graph beside another
 _SIM_PARAMETERS = [spec.name for spec in PARAMETERS] + ['use_sim_time']
 
 
@@ -183,8 +171,7 @@ class Lockstep:
             counter.wrap_new()  # entities made since it was last looked at
             answer = self._answers.get(node)
             if answer is None:  # it joins
-                if node is not self.clock_owner:
-                    _warn_if_on_wall_time(node)
+                _say_what_it_misses(node)
                 name = node.get_fully_qualified_name()
                 answer = self._answers[node] = Answer(f'{name}#{next(self._ids)}', name, now_ns,
                                                       counter.sent, counter.heard)
@@ -281,78 +268,6 @@ class Lockstep:
         return sum(due for _, _, due in self.ledger.waiting_for(self.now_ns))
 
 
-def isolated_domain_id():
-    """
-    Return this process's ROS domain, claimed once and exported; discovery local.
-
-    The first call claims a block (claim_domains) and stores its first domain in
-    SIM_GRAPH_DOMAIN_ID (set that to pin one); child processes get it as ROS_DOMAIN_ID.  A
-    pytest-xdist worker gwN given a domain (pinned, or its run's block) takes it + N.
-    """
-    given = os.environ.get(DOMAIN_VARIABLE)
-    domain = claim_domains() if given is None else _domain_number(given)
-    worker = os.environ.get('PYTEST_XDIST_WORKER')
-    if worker and os.environ.get(WORKER_VARIABLE) != worker:
-        os.environ[WORKER_VARIABLE] = worker  # its child processes: the domain is theirs too
-        if given is not None:
-            domain = _domain_number(domain + int(worker[2:]), f' + {worker[2:]} (worker {worker})')
-    os.environ[DOMAIN_VARIABLE] = os.environ['ROS_DOMAIN_ID'] = str(domain)
-    os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
-    return domain
-
-
-def _domain_number(value, how=''):
-    """Return value as a domain, or ValueError naming SIM_GRAPH_DOMAIN_ID and the valid range."""
-    domain = int(value) if str(value).isdigit() else -1
-    if not 0 <= domain <= MAX_DOMAIN_ID:
-        raise ValueError(f'{DOMAIN_VARIABLE}={os.environ[DOMAIN_VARIABLE]}{how}: a ROS domain is '
-                         f'a whole number from 0 to {MAX_DOMAIN_ID} (Fast DDS)')
-    return domain
-
-
-def claim_domains(directory=None):
-    """
-    Claim a free block of domains for this process's lifetime; return the block's first domain.
-
-    A block is held by a lock on its file in directory (DOMAIN_LOCKS, or SIM_GRAPH_DOMAIN_LOCKS:
-    one for every user, as domains are the machine's).  When none is free, one is shared.
-    """
-    # Fast DDS maps a domain to UDP ports; 1..100 stays clear of 0 (everyone's default) and of
-    # the top of the valid range.
-    starts = list(range(1, 101, DOMAIN_BLOCK))
-    random.SystemRandom().shuffle(starts)
-    directory = directory or os.environ.get('SIM_GRAPH_DOMAIN_LOCKS', DOMAIN_LOCKS)
-    with contextlib.suppress(OSError):
-        os.makedirs(directory, exist_ok=True)
-        os.chmod(directory, 0o1777)  # every user's runs lock here (refused if not ours)
-    for start in starts:
-        try:
-            # Read-only is enough for flock, so a file another user made serves as well.
-            lock = os.open(os.path.join(directory, f'{start}.lock'), os.O_RDONLY | os.O_CREAT,
-                           0o666)
-        except OSError:
-            continue
-        try:
-            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            os.close(lock)
-            continue
-        _claims.append(lock)  # held open (and so locked) until this process ends
-        return start
-    warnings.warn(f'Every block of ROS domains 1-100 is held by another run on this machine: '
-                  f'sharing domain {starts[0]}, whose nodes may hear each other (set '
-                  f'{DOMAIN_VARIABLE} to a free domain)', RuntimeWarning, stacklevel=2)
-    return starts[0]
-
-
-def _spare_domain():
-    """Return a domain no graph of this process is open on, of a block this process holds."""
-    if not (free := [d for d in _spares if d not in _open_domains]):
-        start = claim_domains()
-        _spares.extend(free := list(range(start, start + DOMAIN_BLOCK)))
-    return free[0]
-
-
 class SimGraph(Lockstep):
     """
     A simulator and the nodes under test in this process, stepped in lockstep.
@@ -368,7 +283,8 @@ class SimGraph(Lockstep):
         if context is None:
             domain = isolated_domain_id()
             if domain in _open_domains:  # another graph is open on it: one would hear the other
-                domain = _spare_domain()  # (processes started meanwhile are on the first's)
+                # (processes started meanwhile are still on the first's)
+                domain = spare_domain(_open_domains)
             context = self._own.enter_context(held_context(domain_id=domain))
         super().__init__(executor_class(context=context))
         self.context = context
@@ -488,12 +404,19 @@ def _overrides(params):
     return [Parameter(name, value=value) for name, value in params.items()]
 
 
-def _warn_if_on_wall_time(node):
-    """Warn about a node whose timers run on wall time: the graph's steps do not pace them."""
+def _say_what_it_misses(node):
+    """Warn about a node whose timers run on wall time; say which topics nobody hears."""
     timed = any(not timer.is_canceled() for timer in node.timers)  # (node.timers: a generator)
-    owns_a_clock = any(pub.msg_type is ClockMsg for pub in node.publishers)  # a free simulator
-    if timed and not owns_a_clock and not node.get_parameter('use_sim_time').value:
+    if isinstance(node, UnicycleSim) or any(pub.msg_type is ClockMsg for pub in node.publishers):
+        return  # a simulator: it keeps its own time, and publishes for whoever listens
+    if timed and not node.get_parameter('use_sim_time').value:
         node.get_logger().warning(
             'On wall time (use_sim_time is false) in a SimGraph: its timers do not follow the '
             "graph's steps; build it with parameter_overrides=sim_time_params(), or add it "
             'with node()')
+    quiet = ('/rosout', '/parameter_events', answer_topic(clock_topic(node)))  # lockstep's
+    unheard = sorted(pub.topic_name for pub in node.publishers
+                     if not pub.get_subscription_count() and pub.topic_name not in quiet)
+    if unheard:  # said once, as it joins: pytest shows it with a test that failed
+        node.get_logger().info(f'Nothing in the graph subscribes to {", ".join(unheard)}, '
+                               'which it publishes (a topic named wrong?)')
