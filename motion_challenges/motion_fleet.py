@@ -20,6 +20,7 @@ speak to all (``/**:``) or to one (``/robot1/odom_out_and_back:``).
 """
 
 from collections import Counter
+import os
 from pathlib import Path
 import time
 
@@ -208,9 +209,9 @@ class MotionFleet(Node):
         # The simulator no longer waits for this process.  A file that several robots were
         # given (-p for them all) gets each robot's name: fleet.png -> fleet_site_a_robot1.png.
         files = [node.get_parameter('plot_file').value for node in self.motions]
-        shared = Counter(files)
+        shared = Counter(os.path.abspath(f) for f in files if f)
         for (robot, _, _), node, plot_file in zip(self.plan, self.motions, files):
-            if plot_file and shared[plot_file] > 1:
+            if plot_file and shared[os.path.abspath(plot_file)] > 1:
                 path = Path(plot_file)
                 plot_file = str(path.with_name(f"{path.stem}_{robot.replace('/', '_')}"
                                                f'{path.suffix}'))

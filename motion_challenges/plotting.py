@@ -202,6 +202,8 @@ def plot_file_problem(path):
     folder = os.path.dirname(os.path.abspath(path))
     if path and not os.path.isdir(folder):
         return f'names a directory that does not exist ({folder})'
+    if path and (os.path.isdir(path) or path.endswith('/')):
+        return 'names a directory, not a file'
     suffix = os.path.splitext(path)[1][1:]
     if not suffix:  # nothing asked, or no format named (matplotlib writes a PNG)
         return None

@@ -293,6 +293,9 @@ def test_a_graphs_mistakes_are_named(graph, capfd):
     owner.create_timer(0.1, lambda: None)
     graph.step()
     assert 'On wall time' not in capfd.readouterr().err
+    graph.sim(stepped=False, robots=['other'])  # a second simulator, on wall time: said
+    graph.step()
+    assert '[unicycle_sim]: On wall time (use_sim_time is false)' in capfd.readouterr().err
     steady = graph.add(Node('steady_timer', context=graph.context,
                             parameter_overrides=graph.sim_time_params()))
     # What a step that does not settle waits for, in words (its timeout: 10 s).
@@ -318,8 +321,8 @@ def test_a_topic_nobody_in_the_graph_hears_is_named_as_its_node_joins(graph, cap
         node.create_publisher(Twist, topic, 10)
     graph.step()
     err = capfd.readouterr().err
-    assert '[controller]: Nothing in the graph subscribes to /cmd_vell, which it publishes (a ' \
-        'topic named wrong?)' in err
+    assert '[controller]: Nothing in the graph subscribes (yet) to /cmd_vell, which it ' \
+        'publishes: a topic named wrong?' in err
     assert err.count('Nothing in the graph subscribes') == 1  # its nodes: on what they hear
 
 

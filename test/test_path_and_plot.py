@@ -16,6 +16,7 @@
 
 import math
 
+from motion_challenges import motion_node
 from motion_challenges.circle_back_and_forth import CircleBackAndForth
 from motion_challenges.motion_node import MotionState
 from motion_challenges.odom_out_and_back import OdomOutAndBack
@@ -23,6 +24,7 @@ from motion_challenges.plotting import plot_run
 from motion_challenges.plotting import step_series
 from motion_challenges.plotting import time_series
 from motion_challenges.plotting import unwrap_deg
+from motion_challenges.plotting import write_plot
 from motion_challenges.prompts import RotationRequest
 from motion_challenges.rotate_robot import ask_missing
 from motion_challenges.rotate_robot import RotateRobot
@@ -97,10 +99,13 @@ def test_against_a_simulator_in_lockstep_it_plots_once_it_has_left(graph, tmp_pa
     node = run_with_plot(graph, TimedOutAndBack, plot, goal_distance=0.5, pause=0.2)
     graph.step_until(lambda: node.state is MotionState.RUNNING, sim_timeout=5.0)
     monkeypatch.setattr(Participant, 'owner_present', property(lambda self: True))
+    left_when_plotted = []
+    monkeypatch.setattr(motion_node, 'write_plot', lambda node, ending: (
+        left_when_plotted.append(node.lockstep.left), write_plot(node, ending)))
     graph.step_until(lambda: node.done, sim_timeout=30.0)
     assert node.exit_code == 0 and not plot.exists()
     node.shutdown_hook()
-    assert node.lockstep.left
+    assert left_when_plotted == [True]
     assert_png(plot, PLOT_SHAPE)
 
 
@@ -140,6 +145,8 @@ def test_a_plot_file_that_cannot_be_written_is_refused_at_start_and_live(graph, 
     with pytest.raises(ParameterError, match="'plot_file' must end in a format matplotlib "
                                              'writes: .*pdf, .*png, .*svg'):
         circle(tmp_path / 'run.txt')
+    with pytest.raises(ParameterError, match="'plot_file' names a directory, not a file"):
+        circle(tmp_path)
     node = graph.add(circle(tmp_path / 'run'))  # no format named: matplotlib writes a PNG
     result, = node.set_parameters([Parameter('plot_file', value=str(tmp_path / 'run.txt'))])
     assert not result.successful and 'format matplotlib writes' in result.reason

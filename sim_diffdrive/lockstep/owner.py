@@ -231,8 +231,8 @@ class LockstepOwner:
         ledger = self.ledger
         now = time.monotonic()
         resend = bool(waiting) and now - max(wall, self._resent_wall) >= self._resend_s
-        # Half ALIVE_S: the clock's timer looks every ALIVE_S at most, and a look a moment
-        # after a roster (an answer came) must not leave the next tick without one.
+        # Half ALIVE_S, as the clock's timer looks every ALIVE_S / 2 at most: at most ALIVE_S
+        # between two rosters, even after one that a look on an answer sent between ticks.
         if ledger.version == self._roster_version and not resend and not (
                 alive and now - self._roster_wall >= ALIVE_S / 2):
             return False

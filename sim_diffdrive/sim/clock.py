@@ -288,7 +288,7 @@ class LockstepClock(_TimedClock):
 
     def period_s(self):
         if self.budget_s >= _LOCKSTEP_TICK_S:
-            return min(self.budget_s, ALIVE_S)  # a slow step: the roster says it is alive
+            return min(self.budget_s, ALIVE_S / 2)  # a slow step: the roster says it is alive
         return _WATCH_TICK_S if self._watching else _LOCKSTEP_TICK_S
 
     def set_real_time_factor(self, value):

@@ -171,7 +171,8 @@ class Lockstep:
             counter.wrap_new()  # entities made since it was last looked at
             answer = self._answers.get(node)
             if answer is None:  # it joins
-                _say_what_it_misses(node)
+                if node is not self.clock_owner:
+                    _say_what_it_misses(node)
                 name = node.get_fully_qualified_name()
                 answer = self._answers[node] = Answer(f'{name}#{next(self._ids)}', name, now_ns,
                                                       counter.sent, counter.heard)
@@ -288,8 +289,9 @@ class SimGraph(Lockstep):
             context = self._own.enter_context(held_context(domain_id=domain))
         super().__init__(executor_class(context=context))
         self.context = context
-        _open_domains.append(context.get_domain_id())
-        self._own.callback(_open_domains.remove, context.get_domain_id())
+        if context.ok():  # (a graph on a context shut down already: nothing to register)
+            _open_domains.append(context.get_domain_id())
+            self._own.callback(_open_domains.remove, context.get_domain_id())
         self._probes = {}  # robot name (None: the one on odom) -> listening Probe
         self._scans = {}  # robot name -> its latest LaserScan (a deque of one)
 
@@ -405,18 +407,19 @@ def _overrides(params):
 
 
 def _say_what_it_misses(node):
-    """Warn about a node whose timers run on wall time; say which topics nobody hears."""
+    """Warn about a node whose timers run on wall time; say which topics nobody hears yet."""
     timed = any(not timer.is_canceled() for timer in node.timers)  # (node.timers: a generator)
-    if isinstance(node, UnicycleSim) or any(pub.msg_type is ClockMsg for pub in node.publishers):
-        return  # a simulator: it keeps its own time, and publishes for whoever listens
-    if timed and not node.get_parameter('use_sim_time').value:
+    owns_a_clock = any(pub.msg_type is ClockMsg for pub in node.publishers)  # a free simulator
+    if timed and not owns_a_clock and not node.get_parameter('use_sim_time').value:
         node.get_logger().warning(
             'On wall time (use_sim_time is false) in a SimGraph: its timers do not follow the '
             "graph's steps; build it with parameter_overrides=sim_time_params(), or add it "
             'with node()')
+    if isinstance(node, UnicycleSim) or owns_a_clock:
+        return  # a simulator publishes for whoever listens
     quiet = ('/rosout', '/parameter_events', answer_topic(clock_topic(node)))  # lockstep's
     unheard = sorted(pub.topic_name for pub in node.publishers
                      if not pub.get_subscription_count() and pub.topic_name not in quiet)
     if unheard:  # said once, as it joins: pytest shows it with a test that failed
-        node.get_logger().info(f'Nothing in the graph subscribes to {", ".join(unheard)}, '
-                               'which it publishes (a topic named wrong?)')
+        node.get_logger().info(f'Nothing in the graph subscribes (yet) to {", ".join(unheard)}, '
+                               'which it publishes: a topic named wrong?')
