@@ -107,21 +107,15 @@ def test_answers_pace_the_clock_and_its_timer_only_watches(graph, monkeypatch):
     assert graph.spin_until(lambda: clock.timer.timer_period_ns == 20_000_000, 5.0)
 
 
-def test_a_slow_simulator_says_it_is_there_between_its_steps(graph):
-    # At real_time_factor 0.02 a step takes 1 s of wall time: with nothing from the simulator
-    # meanwhile, every motion on sim time gave up after its odom_timeout (1 s), saying that
-    # simulated time stood still (is the simulator still running?).  Nobody is dropped for
-    # being quiet between steps longer than lockstep_timeout (0.5 s), two participants either.
+def test_steps_slower_than_lockstep_timeout_drop_nobody(graph):
+    # A participant answers only when a step (or a message) comes: quiet between steps longer
+    # than lockstep_timeout (0.5 s here, 1 s a step), two participants either, is not silence.
     sim = graph.sim(stepped=False, publish_clock=True, lockstep=True, real_time_factor=0.02,
                     lockstep_timeout=0.5)
     one, two = graph.node(Driver, namespace='one'), graph.node(Driver, namespace='two')
     assert graph.spin_until(lambda: one.lockstep.joined and two.lockstep.joined, 10.0)
-    rosters, now_ns = set(), sim.now_ns()
-    graph.spin_until(lambda: rosters.add(one.lockstep.roster_wall) and False, 2.2)
-    assert 20_000_000 <= sim.now_ns() - now_ns <= 60_000_000  # a step or so a second
-    # About every ALIVE_S (0.25 s): 8 or 9; one every 0.5 s once (a look just after a roster
-    # took the next tick's turn), none without (nothing changed: no roster).
-    assert len(rosters) >= 4
+    now_ns = sim.now_ns()
+    assert graph.spin_until(lambda: sim.now_ns() - now_ns >= 40_000_000, 10.0)  # two steps
     assert sim.clock.owner.ledger.dropped == {}
 
 

@@ -49,10 +49,6 @@ _MAX_CATCH_UP = 20
 # fixed short interval a busy graph spends its time answering re-sends (docs/time.md).
 RESEND_S = 0.01
 RESEND_MAX_S = 0.32
-# With participants, the roster goes out at least this often [s, wall], held or not: a motion
-# gives up on a simulator silent for its odom_timeout (1 s), and a step at a low
-# real_time_factor or rate_hz can take longer than that.
-ALIVE_S = 0.25
 # Weight of the newest step in the moving average of the wall time between steps.
 _STEP_WEIGHT = 0.1
 # A look at the step (the clock timer, or news) later than this beyond the timer's period means
@@ -79,7 +75,7 @@ class LockstepOwner:
         self._waiting = None  # what the current step waits for; None: to be worked out
         self._announced = set()
         self._roster_version = -1
-        self._resent_wall = self._roster_wall = 0.0  # the last re-send, the last roster
+        self._resent_wall = 0.0
         self._resend_s = RESEND_S  # the wait before the next re-send of this step
         self._step_s = 0.0  # recent wall time between steps [s; moving average]
         self._warned_wall = 0.0
@@ -141,7 +137,7 @@ class LockstepOwner:
             # Worked out again only after news; the clock timer in between only paces.
             self._waiting = ledger.waiting_for(sim.now_ns())
         waiting = self._waiting
-        resend = self._publish_roster(waiting, wall, alive=True)
+        resend = self._publish_roster(waiting, wall)
         if waiting:
             held = waited - self._stalled_s  # while the simulator ran, and could hear
             if held <= sim.params.lockstep_timeout or not self._give_up(waiting, held):
@@ -219,11 +215,9 @@ class LockstepOwner:
         # would run catch-up bursts inside command callbacks and overflow the cmd_vel queues.
         return len(self.ledger.members) > 1
 
-    def _publish_roster(self, waiting=(), wall=None, alive=False):
+    def _publish_roster(self, waiting=(), wall=None):
         """
         Tell the participants who is counted when that changed; while waiting, re-send.
-
-        With alive, also when ALIVE_S has passed since the last one: the simulator is there.
 
         Return whether the clock should re-send its current /clock too (the step has been held
         since wall for longer than the re-send wait).
@@ -231,12 +225,8 @@ class LockstepOwner:
         ledger = self.ledger
         now = time.monotonic()
         resend = bool(waiting) and now - max(wall, self._resent_wall) >= self._resend_s
-        # Half ALIVE_S, as the clock's timer looks every ALIVE_S / 2 at most: at most ALIVE_S
-        # between two rosters, even after one that a look on an answer sent between ticks.
-        if ledger.version == self._roster_version and not resend and not (
-                alive and now - self._roster_wall >= ALIVE_S / 2):
+        if ledger.version == self._roster_version and not resend:
             return False
-        self._roster_wall = now
         if resend:
             self._resent_wall = now
             self._resend_s = min(2.0 * self._resend_s, RESEND_MAX_S)

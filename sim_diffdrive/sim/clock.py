@@ -29,7 +29,6 @@ from rclpy.qos import QoSProfile
 from rclpy.qos import ReliabilityPolicy
 from rosgraph_msgs.msg import Clock as ClockMsg
 from sim_diffdrive.cdr import clock_message
-from sim_diffdrive.lockstep.owner import ALIVE_S
 from sim_diffdrive.lockstep.owner import LockstepOwner
 from sim_diffdrive.lockstep.participant import ANSWER_QOS
 from sim_diffdrive.lockstep.participant import take_part
@@ -288,7 +287,7 @@ class LockstepClock(_TimedClock):
 
     def period_s(self):
         if self.budget_s >= _LOCKSTEP_TICK_S:
-            return min(self.budget_s, ALIVE_S / 2)  # a slow step: the roster says it is alive
+            return self.budget_s
         return _WATCH_TICK_S if self._watching else _LOCKSTEP_TICK_S
 
     def set_real_time_factor(self, value):
