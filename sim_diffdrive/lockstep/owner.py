@@ -258,18 +258,6 @@ class LockstepOwner:
         names = sorted(member.answer.node for member in senders)
         return [] if present.intersection(names) else names
 
-    def _drop_silent(self):
-        """Go on without each participant silent for lockstep_timeout; return whether any."""
-        ledger, timeout = self.ledger, self.sim.params.lockstep_timeout
-        silent = ledger.silent(time.monotonic(), timeout)
-        for pid in silent:
-            answer = ledger.members[pid].answer
-            self.sim.get_logger().warning(
-                f'Lockstep: nothing heard from {answer.node} for {timeout:g} s (its last answer: '
-                f'{answer.step_ns / _NS:.3f} s); going on without it')
-            ledger.drop(pid, self.sim.now_ns())
-        return bool(silent)
-
     def _give_up(self, waiting, held_s):
         """
         After lockstep_timeout: drop the silent, forgive what the live have not heard.
@@ -283,8 +271,13 @@ class LockstepOwner:
         ledger = self.ledger
         logger = self.sim.get_logger()
         timeout = self.sim.params.lockstep_timeout
-        now_ns, wall = self.sim.now_ns(), time.monotonic()
-        self._drop_silent()
+        now_ns = self.sim.now_ns()
+        wall = time.monotonic()
+        for pid in ledger.silent(wall, timeout):
+            answer = ledger.members[pid].answer
+            logger.warning(f'Lockstep: nothing heard from {answer.node} for {timeout:g} s (its '
+                           f'last answer: {answer.step_ns / _NS:.3f} s); going on without it')
+            ledger.drop(pid, now_ns)
         held, undiscovered = [], []
         for reason in waiting:
             pid, topic, _ = reason
