@@ -38,3 +38,7 @@ class Throttle:
             return False
         self._last[key] = now
         return True
+
+    def reset(self):
+        """Let the next line under every key through at once."""
+        self._last.clear()

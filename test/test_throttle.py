@@ -29,6 +29,8 @@ def test_the_first_line_goes_out_then_one_per_period_and_key():
     assert lines.allows('stamp')
     assert not lines.allows('stamp')
     assert lines.allows()  # no key: a key of its own
+    lines.reset()  # (a new Foxglove subscriber: every robot's scene at once)
+    assert lines.allows('stamp') and lines.allows('value')
 
 
 def test_a_refused_line_does_not_push_the_next_one_back():

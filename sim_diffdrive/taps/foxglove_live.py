@@ -108,7 +108,7 @@ class FoxgloveLive:
         transforms = self._transforms is not None and self._transforms.has_sinks()
         scene = self._scene.has_sinks()
         if not scene:
-            self._scene_throttle = Throttle(SCENE_PERIOD_S)  # a new subscriber gets every robot
+            self._scene_throttle.reset()  # a new subscriber gets every robot at once
             if not transforms:
                 return  # nobody looks: the bytes need not be read
         frame, child_frame, p, q = _odometry_fields(odom)

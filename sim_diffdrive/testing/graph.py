@@ -173,7 +173,7 @@ class Lockstep:
             if answer is None:  # it joins
                 if node is not self.clock_owner:
                     _say_what_it_misses(node)
-                name = node.get_fully_qualified_name()
+                name = self._names[node]
                 answer = self._answers[node] = Answer(f'{name}#{next(self._ids)}', name, now_ns,
                                                       counter.sent, counter.heard)
             # A member's again: a topic it hears since is owed from here on.
