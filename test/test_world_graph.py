@@ -181,8 +181,8 @@ def test_a_robot_started_outside_the_map_is_warned_about(graph, capfd):
     rviz.create_publisher(PoseWithCovarianceStamped, 'a/initialpose', 10).publish(
         pose_estimate('map', 10.0, 10.0, 0.0))
     graph.step_for(0.1)
-    assert ('a: At (10.000, 10.000) in the map, outside it: no wall or scan return out '
-            'there') in capfd.readouterr().err
+    assert ('a: Set to (10.000, 10.000) in the map, outside the map (80 x 60 cells from its '
+            'origin): no wall or scan return out there') in capfd.readouterr().err
 
 
 def test_initialpose_in_the_map_moves_map_to_odom_and_keeps_odometry_continuous(graph):

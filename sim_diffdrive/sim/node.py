@@ -205,11 +205,9 @@ class UnicycleSim(Node):
         """Warn about each robot that starts outside the map: nothing is solid out there."""
         grid = self.surroundings.grid
         for name, x, y in zip(names, *self.world.map_poses()[:2]):
-            if grid.cell_of(float(x), float(y)) is None:
-                self.get_logger().warning(
-                    f"{f'{name}: ' if name else ''}Starts at ({x:.3f}, {y:.3f}) in "
-                    f'{self.surroundings.map_frame}, outside the map ({grid.width} x '
-                    f'{grid.height} cells from its origin): no wall or scan return out there')
+            if outside := grid.outside(float(x), float(y)):
+                self.get_logger().warning(f"{f'{name}: ' if name else ''}Starts at ({x:.3f}, "
+                                          f'{y:.3f}) in {self.surroundings.map_frame}, {outside}')
 
     def _initial_poses(self, count):
         p = self.params

@@ -144,9 +144,8 @@ class Robot:
                          f'{yaw:.3f} rad) in {given} by initialpose, at rest')
         walls = self.world.walls
         x, y = (float(xy[self.index]) for xy in self.world.map_poses()[:2])
-        if walls is not None and walls.grid.cell_of(x, y) is None:  # as a start there is
-            self.logger.warning(f'{self.label}At ({x:.3f}, {y:.3f}) in the map, outside it: no '
-                                'wall or scan return out there')
+        if walls is not None and (outside := walls.grid.outside(x, y)):  # as a start there is
+            self.logger.warning(f'{self.label}Set to ({x:.3f}, {y:.3f}) in the map, {outside}')
 
     # -- commands ---------------------------------------------------------------------------
 

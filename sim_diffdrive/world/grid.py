@@ -100,6 +100,13 @@ class GridMap:
         c, s = math.cos(yaw), math.sin(yaw)
         return ox + c * gx - s * gy, oy + s * gx + c * gy
 
+    def outside(self, x, y):
+        """Return why a map-frame point is not on the map (in words), or None when it is."""
+        if self.cell_of(x, y) is not None:
+            return None
+        return (f'outside the map ({self.width} x {self.height} cells from its origin): no wall '
+                'or scan return out there')
+
     def cell_of(self, x, y):
         """Return the (row, col) of the half-open cell that holds a map-frame point, or None."""
         gx, gy = self.to_grid(x, y)
