@@ -215,7 +215,7 @@ class MotionFleet(Node):
                 path = Path(plot_file)
                 plot_file = str(path.with_name(f"{path.stem}_{robot.replace('/', '_')}"
                                                f'{path.suffix}'))
-            write_plot(node, node.ending, plot_file)
+            write_plot(node, plot_file)
 
     def _answered_for(self, node):
         """Return whether node takes part in lockstep through the fleet's own participant."""

@@ -218,7 +218,7 @@ class MotionNode(Node):
     def _plot(self):
         if self.plots_itself and not self._plotted:
             self._plotted = True
-            write_plot(self, self.ending)
+            write_plot(self)
 
     def now_ns(self):
         return self.get_clock().now().nanoseconds

@@ -217,19 +217,19 @@ def plot_file_problem(path):
     return None
 
 
-def write_plot(node, ending, plot_file=None):
+def write_plot(node, plot_file=None):
     """
     Write a motion node's run to its plot_file, if it has one and the motion began; log it.
 
     However the run ended: its closing line's goal against the achieved pose (``node.plot_end``:
-    the odometry at rest and that text) once it settled, else ``ending`` (why it stopped).
+    the odometry at rest and that text) once it settled, else ``node.ending`` (why it stopped).
     """
     # A fleet's robot: a file of its own.  (params.plot_file is checked as it is read, and
     # its directory may be gone by now: savefig below says so.)
     plot_file = node.get_parameter('plot_file').value if plot_file is None else plot_file
     if not plot_file or node.start_ns is None:
         return
-    end_odom, achieved = node.plot_end or (None, ending)
+    end_odom, achieved = node.plot_end or (None, node.ending)
     start = node.start_odom
     goal = node.goal_pose(start) if start else None
     # The odometry the motion started on comes first: the heading starts from its yaw.

@@ -239,7 +239,7 @@ def test_a_fleet_plots_each_robot_to_a_file_of_its_own_after_its_goodbye(
     # motion drew its plot as it ended, in the fleet's lockstep: it held every robot's clock,
     # past a lockstep_timeout of 0.3 s, and the others failed.
     written = []
-    monkeypatch.setattr(motion_fleet, 'write_plot', lambda node, ending, path: written.append(
+    monkeypatch.setattr(motion_fleet, 'write_plot', lambda node, path: written.append(
         (node.get_namespace(), path, fleet.lockstep.left)))
     with fleet_in(['--ros-args', '-p', 'robots:=[site_a/robot1,robot2]', '-p',
                    'use_sim_time:=true', '-p', 'motions:=[timed_out_and_back]', '-p',

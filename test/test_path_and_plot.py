@@ -100,8 +100,8 @@ def test_against_a_simulator_in_lockstep_it_plots_once_it_has_left(graph, tmp_pa
     graph.step_until(lambda: node.state is MotionState.RUNNING, sim_timeout=5.0)
     monkeypatch.setattr(Participant, 'owner_present', property(lambda self: True))
     left_when_plotted = []
-    monkeypatch.setattr(motion_node, 'write_plot', lambda node, ending: (
-        left_when_plotted.append(node.lockstep.left), write_plot(node, ending)))
+    monkeypatch.setattr(motion_node, 'write_plot', lambda node: (
+        left_when_plotted.append(node.lockstep.left), write_plot(node)))
     graph.step_until(lambda: node.done, sim_timeout=30.0)
     assert node.exit_code == 0 and not plot.exists()
     node.shutdown_hook()
