@@ -234,10 +234,19 @@ class RobotWatch:
             self._clock_seen_ns, self._clock_moved_wall = now_ns, wall
             return
         silent = self._silent_since(self._clock_moved_wall, wall)
-        if silent > node.params.odom_timeout:
+        if silent > self._silence_allowed_s():
             node.finish(EXIT_FAILED, f'Simulated time stood still at {now_ns / _NS:.3f} s for '
                                      f'{silent:.1f} s mid-motion with no word from the simulator; '
                                      'stopped the robot (is the simulator still running?)')
+
+    def _silence_allowed_s(self):
+        """Return odom_timeout, beyond the wall time a step takes in lockstep (its roster)."""
+        lockstep = self._node.lockstep
+        roster = lockstep.roster if lockstep is not None else None
+        # At a real_time_factor of 0.01 each step of 20 ms takes 2 s: no silence of the
+        # simulator's, but odometry and the clock come that far apart.
+        step_s = roster.step_wall_ns / _NS if roster is not None else 0.0
+        return self._node.params.odom_timeout + step_s
 
     def _silent_since(self, last_wall, wall):
         """Return how long the simulator has said nothing [s]: since last_wall or its roster."""
@@ -262,7 +271,7 @@ class RobotWatch:
             self._distrust(f'{publishers} publishers on {self._odom_topic} mid-motion')
             return
         silent = self._silent_since(self._odom_wall, time.monotonic())
-        if silent > node.params.odom_timeout:
+        if silent > self._silence_allowed_s():
             node.finish(EXIT_FAILED, f'No odometry for {silent:.1f} s mid-motion; stopped '
                                      'the robot (is the simulator still running?)')
 

@@ -167,7 +167,7 @@ def test_a_step_held_past_lockstep_timeout_drops_the_silent_and_waits_for_the_li
     sim = SimpleNamespace(get_fully_qualified_name=lambda: '/sim', now_ns=lambda: now[0],
                           params=SimpleNamespace(lockstep_timeout=0.5),
                           get_logger=lambda: SimpleNamespace(warning=warned.append))
-    owner = LockstepOwner(sim, '/clock')
+    owner = LockstepOwner(sim, '/clock', 0.02)
     owner._roster_pub = SimpleNamespace(publish=lambda msg: None)
     ledger, wall = owner.ledger, time.monotonic()
     for pid, heard_wall in (('/sim#owner', wall), ('/gone#1', wall - 0.6), ('/live#1', wall)):

@@ -20,6 +20,7 @@ import time
 from motion_challenges.odom_out_and_back import OdomOutAndBack
 from motion_challenges.timed_out_and_back import TimedOutAndBack
 import pytest
+from rclpy.parameter import Parameter
 from sim_diffdrive.harness import angle_error
 from sim_diffdrive.harness import pose_of
 from sim_diffdrive.runtime import EXIT_FAILED
@@ -56,3 +57,23 @@ def test_a_simulator_gone_mid_motion_is_asked_after_not_called_restarted(graph, 
     assert node.exit_code == EXIT_FAILED
     assert ('0 publishers on /odom mid-motion; stopped the robot (is the simulator still '
             'running?)') in capfd.readouterr().err
+
+
+def test_a_simulator_slowed_down_live_is_not_taken_for_a_silent_one(graph):
+    # A user slows the simulator down mid-motion to watch: at real_time_factor 0.04 a 20 ms
+    # step takes 0.5 s of wall time, longer than odom_timeout (0.3 s), and odometry and the
+    # clock come that far apart.  The simulator's roster says how long a step takes.
+    sim = graph.sim(stepped=False, publish_clock=True, lockstep=True, real_time_factor=5.0)
+    probe = graph.probe()
+    node = graph.node(OdomOutAndBack, legs=1, goal_distance=0.1, odom_timeout=0.3)
+    assert graph.spin_until(lambda: node.start_ns is not None, 10.0)
+    assert sim.set_parameters([Parameter('real_time_factor', value=0.04)])[0].successful
+    now_ns = sim.now_ns()
+    assert graph.spin_until(lambda: sim.now_ns() >= now_ns + 3 * sim.step_ns, 5.0)
+    assert not node.done, node.exit_code
+    assert sim.set_parameters([Parameter('real_time_factor', value=5.0)])[0].successful
+    assert graph.spin_until(lambda: node.done, 10.0)
+    assert node.exit_code == 0
+    graph.spin_for(0.2)  # the final stop's step, and more
+    x, y, yaw = pose_of(probe.odom)
+    assert math.hypot(x - 0.1, y) < 1e-6 and angle_error(yaw, math.pi) < 1e-6

@@ -108,6 +108,8 @@ class Roster:
     can tell a held clock from a simulator that is gone.  ``dropped`` names every participant
     the owner went on without, with the time it did so [ns]: each roster carries it, so one that
     was dropped learns of it even when the roster it was left out of is lost or overtaken.
+    ``step_wall_ns`` is the least wall time the owner gives a step at its real_time_factor: at
+    0.01 a step of 20 ms takes 2 s, and a participant waits that long for its next step.
     """
 
     owner: str
@@ -116,6 +118,7 @@ class Roster:
     heard_topics: set = field(default_factory=set)
     waiting: list = field(default_factory=list)
     dropped: dict = field(default_factory=dict)
+    step_wall_ns: int = 0
 
     def encode(self):
         """Return the roster as the text of a std_msgs/String."""
@@ -123,6 +126,8 @@ class Roster:
                 'heard_topics': sorted(self.heard_topics), 'waiting': self.waiting}
         if self.dropped:
             data['dropped'] = self.dropped
+        if self.step_wall_ns:
+            data['step_wall_ns'] = self.step_wall_ns
         return json.dumps(data, separators=(',', ':'))
 
     @classmethod
@@ -133,7 +138,8 @@ class Roster:
             return cls(str(data['owner']), _integer(data['step_ns']),
                        {str(m) for m in data['members']},
                        {str(t) for t in data.get('heard_topics', ())},
-                       [str(w) for w in data.get('waiting', ())], _counts(data.get('dropped', {})))
+                       [str(w) for w in data.get('waiting', ())], _counts(data.get('dropped', {})),
+                       _integer(data.get('step_wall_ns', 0)))
         except (TypeError, KeyError, ValueError, AttributeError, RecursionError) as error:
             raise ValueError(f'not a lockstep roster: {error}') from None
 

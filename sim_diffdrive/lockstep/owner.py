@@ -65,7 +65,7 @@ UNDISCOVERED_TIMEOUTS = 3
 class LockstepOwner:
     """Decide when the simulator ``sim`` may step its clock, published on ``clock_topic``."""
 
-    def __init__(self, sim, clock_topic):
+    def __init__(self, sim, clock_topic, budget_s):
         self.sim = sim
         self._clock_topic = clock_topic
         self._owner_id = sim.get_fully_qualified_name() + '#owner'
@@ -82,6 +82,8 @@ class LockstepOwner:
         self._discovery_said = None  # the step the wait for discovery was logged at
         self._looked = time.monotonic()  # when may_step last ran [s, wall]
         self._stalled_s = 0.0  # how long the simulator itself did not run during this step
+        self._step_wall_ns = round(budget_s * _NS)  # told to the participants in the roster
+        self._roster_pub = None
 
     def start(self):
         """Count the simulator's own traffic (its robots exist now); return its MessageCounter."""
@@ -172,9 +174,17 @@ class LockstepOwner:
                     f'Lockstep: this simulator did not run for {stalled:.1f} s (a busy machine, '
                     'a debugger?); nobody is dropped for it')
 
-    def rescheduled(self):
-        """Look from now on: the clock timer starts its period again (a new real_time_factor)."""
+    def rescheduled(self, budget_s):
+        """
+        Look from now on: the clock timer starts its period again (a new real_time_factor).
+
+        budget_s: the wall time a step takes at least from now on [s]; the participants are
+        told at once (a motion takes a simulator slower than its watchdog for a silent one).
+        """
         self._looked = time.monotonic()
+        self._step_wall_ns = round(budget_s * _NS)
+        if self._roster_pub is not None:  # started
+            self._publish_roster(force=True)
 
     def hear_answer(self, data):
         """Take an answer (a std_msgs/String's bytes); return whether the step may have settled."""
@@ -215,9 +225,9 @@ class LockstepOwner:
         # would run catch-up bursts inside command callbacks and overflow the cmd_vel queues.
         return len(self.ledger.members) > 1
 
-    def _publish_roster(self, waiting=(), wall=None):
+    def _publish_roster(self, waiting=(), wall=None, force=False):
         """
-        Tell the participants who is counted when that changed; while waiting, re-send.
+        Tell the participants who is counted when that changed (or force); while waiting, re-send.
 
         Return whether the clock should re-send its current /clock too (the step has been held
         since wall for longer than the re-send wait).
@@ -225,7 +235,7 @@ class LockstepOwner:
         ledger = self.ledger
         now = time.monotonic()
         resend = bool(waiting) and now - max(wall, self._resent_wall) >= self._resend_s
-        if ledger.version == self._roster_version and not resend:
+        if ledger.version == self._roster_version and not resend and not force:
             return False
         if resend:
             self._resent_wall = now
@@ -233,6 +243,7 @@ class LockstepOwner:
         now_ns = self.sim.now_ns()
         roster = ledger.roster(self.sim.get_fully_qualified_name(), now_ns,
                                [ledger.describe(reason, now_ns) for reason in waiting])
+        roster.step_wall_ns = self._step_wall_ns
         for pid in roster.members - self._announced - {self._owner_id}:
             self.sim.get_logger().info(
                 f'Lockstep: {ledger.members[pid].answer.node} takes part from '

@@ -264,7 +264,7 @@ class LockstepClock(_TimedClock):
 
     def __init__(self, sim):
         super().__init__(sim)
-        self.owner = LockstepOwner(sim, self.topic)
+        self.owner = LockstepOwner(sim, self.topic, self.budget_s)
         # Before the robots' cmd_vel subscriptions: discovery announces a node's subscriptions
         # in the order they were made, so a motion that has discovered its robot's cmd_vel
         # subscription knows of this one too, and cannot take a lockstep owner for a free
@@ -292,7 +292,7 @@ class LockstepClock(_TimedClock):
 
     def set_real_time_factor(self, value):
         super().set_real_time_factor(value)
-        self.owner.rescheduled()  # the time since the last look is no stall
+        self.owner.rescheduled(self.budget_s)  # the time since the last look is no stall
 
     def _look(self):
         """Take the steps the owner allows now; re-send /clock when it says so."""
