@@ -109,9 +109,8 @@ class World:
         # While a step of solid robots runs: per robot that moves, its pose where it began to
         # move and its arcs, timed from _begin_ns (see _collide).
         self._drives, self._begin_ns = None, 0
-        if walls is not None:
-            for i in range(n):
-                self._check_place(i, *self._to_map(i, self.x[i], self.y[i], self.yaw[i])[:2])
+        for i in range(n):
+            self._check_place(i, *self._to_map(i, self.x[i], self.y[i], self.yaw[i])[:2])
 
     def __len__(self):
         return len(self.names)
@@ -182,14 +181,12 @@ class World:
 
     def place(self, i, x, y, yaw):
         """Put robot i at (x, y, yaw) in its odometry frame, at rest; forget its commands."""
-        if self.walls is not None:
-            self._check_place(i, *self._to_map(i, x, y, yaw)[:2])
+        self._check_place(i, *self._to_map(i, x, y, yaw)[:2])
         self._rest(i, x, y, yaw)
 
     def place_in_map(self, i, x, y, yaw):
         """Put robot i at (x, y, yaw) in the map, at rest; its odometry goes on where it was."""
-        if self.walls is not None:
-            self._check_place(i, x, y)
+        self._check_place(i, x, y)
         ox, oy, oyaw = float(self.x[i]), float(self.y[i]), float(self.yaw[i])
         turn = normalize_angle(yaw - oyaw)
         c, s = math.cos(turn), math.sin(turn)
@@ -241,8 +238,10 @@ class World:
         Raise PlacementError if robot i at (x, y) in the map would be in a wall or a robot.
 
         others: (x, y) in the map of every robot (i's own is not looked at); default: where
-        they are.
+        they are.  On the empty plane (no walls) robots pass through each other: never.
         """
+        if self.walls is None:
+            return
         name = self.names[i] or 'the robot'
         if self.walls.overlaps(x, y):
             raise PlacementError(f'{name} at ({x:.3f}, {y:.3f}) in the map would be inside a '
@@ -332,13 +331,11 @@ class World:
                    | (self.linear != self.target_linear) | (self.angular != self.target_angular))
         for i in np.flatnonzero(special).tolist():
             self._advance(i, now_ns)
-        moving = (integrated < now_ns) & self.moving()
-        index = np.flatnonzero(moving)
+        index = np.flatnonzero((integrated < now_ns) & self.moving())
         if index.size:
-            dt = (now_ns - integrated[index]) / _NS
             self.x[index], self.y[index], self.yaw[index] = integrate_all(
                 self.x[index], self.y[index], self.yaw[index], self.linear[index],
-                self.angular[index], dt)
+                self.angular[index], (now_ns - integrated[index]) / _NS)
         integrated[integrated < now_ns] = now_ns
 
     def _advance(self, i, now_ns):
