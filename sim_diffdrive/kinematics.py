@@ -57,8 +57,7 @@ def normalize_angles(angles):
     wrapped = np.where(angles > math.pi, angles - _TWO_PI,
                        np.where(angles < -math.pi, angles + _TWO_PI, angles))
     wrapped[wrapped == -math.pi] = math.pi
-    far = np.flatnonzero(np.abs(angles) > _ONE_TURN_WRAP)
-    for i in far.tolist():
+    for i in np.flatnonzero(np.abs(angles) > _ONE_TURN_WRAP).tolist():
         wrapped[i] = normalize_angle(float(angles[i]))
     return wrapped
 

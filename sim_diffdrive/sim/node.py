@@ -208,9 +208,8 @@ class UnicycleSim(Node):
 
     def _say_who_is_outside_the_map(self, names):
         """Warn about each robot that starts outside the map: nothing is solid out there."""
-        grid = self.surroundings.grid
         for name, x, y in zip(names, *self.world.map_poses()[:2]):
-            if outside := grid.outside(float(x), float(y)):
+            if outside := self.surroundings.grid.outside(float(x), float(y)):
                 self.get_logger().warning(f"{f'{name}: ' if name else ''}Starts at ({x:.3f}, "
                                           f'{y:.3f}) in {self.surroundings.map_frame}, {outside}')
 
@@ -349,10 +348,7 @@ class UnicycleSim(Node):
         stamp_ns, x, y, qz, qw, linear, angular = odometry or world.odometry()
         if world.events:  # said before the odometry that shows them goes out
             self._log_events()
-        sec, nanosec = divmod(stamp_ns, _NS)
-        each = world.one_by_one  # lists of floats; else arrays
-        layout = self._odometry
-        odometry = layout.serialize(sec, nanosec, x, y, qz, qw, linear, angular)
+        odometry = self._odometry.serialize(*divmod(stamp_ns, _NS), x, y, qz, qw, linear, angular)
         robots = self.robots
         for robot, data in zip(robots, odometry):
             robot.odom_pub.publish(data)
@@ -368,7 +364,7 @@ class UnicycleSim(Node):
         if tapping:
             taps.step(stamp_ns, world)
         if self._odom_count % self._path_every == 0:
-            poses = (x, y, qz, qw) if each else (v.tolist() for v in (x, y, qz, qw))
+            poses = (x, y, qz, qw) if world.one_by_one else (v.tolist() for v in (x, y, qz, qw))
             for robot, *pose in zip(robots, *poses):
                 robot.record_path(stamp_ns, *pose)
         self._odom_count += 1

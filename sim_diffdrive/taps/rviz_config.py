@@ -87,8 +87,7 @@ def _with_topics(display, topics):
     display = copy.deepcopy(display)
     for key in _TOPIC_KEYS:
         if key in display:
-            topic = display[key]['Value'].lstrip('/')
-            display[key]['Value'] = f'{topics}/{topic}'
+            display[key]['Value'] = f"{topics}/{display[key]['Value'].lstrip('/')}"
     return display
 
 

@@ -430,8 +430,7 @@ def scan_points(ranges, angles, x, y, yaw):
 
 def solid_boxes(grid):
     """Return a map's obstacle cells as boxes, one per run along a row: (centers, half_sizes)."""
-    solid = np.asarray(grid.solid, dtype=np.int8)
-    edges = np.diff(np.pad(solid, ((0, 0), (1, 1))), axis=1)
+    edges = np.diff(np.pad(np.asarray(grid.solid, dtype=np.int8), ((0, 0), (1, 1))), axis=1)
     rows, starts = np.nonzero(edges == 1)
     _, ends = np.nonzero(edges == -1)  # row by row, in the same order as the starts
     res = grid.resolution

@@ -101,8 +101,7 @@ def confine(html):
 
 def follow(html, run):
     """Return index.html that opens the next run to serve this port (see RUN_PATH)."""
-    script = _FOLLOW.replace('RUN', run).encode()
-    return html.replace(b'</body>', script + b'</body>', 1)
+    return html.replace(b'</body>', _FOLLOW.replace('RUN', run).encode() + b'</body>', 1)
 
 
 class ViewerPage:

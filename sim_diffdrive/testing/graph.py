@@ -110,8 +110,7 @@ class Lockstep:
         # An EventsExecutor lets go of a removed node's entities when it next runs, after the
         # events it has queued for them: a task queued now runs after both.  Destroyed before,
         # the node would have its callbacks run on its destroyed publishers and timers.
-        released = self.executor.create_task(lambda: None)
-        self.spin_until(released.done, 10.0, poll=0.005)
+        self.spin_until(self.executor.create_task(lambda: None).done, 10.0, poll=0.005)
         self.nodes.remove(node)
         self._names.pop(node)
         if node is self.clock_owner:
@@ -188,11 +187,10 @@ class Lockstep:
         # The nodes first: while a step settles, a node yet to take its /clock or run a due
         # timer is found at a glance, where the ledger weighs every member's every topic (and
         # counts the caught-up members in, once nothing is owed).
-        counters = self._counters
         for node in self.nodes:
             if node is self.clock_owner:
                 continue
-            counter = counters.get(node)
+            counter = self._counters.get(node)
             if counter is not None and counter.clock_ns not in (None, now_ns):
                 yield f'{self._names[node]} to take its /clock'  # seen without rclpy
                 return
