@@ -27,6 +27,7 @@ its time, and after the step the pairs that came within reach are searched along
 import bisect
 from collections import namedtuple
 import math
+from operator import itemgetter
 
 import numpy as np
 from sim_diffdrive.angles import normalize_angle
@@ -58,10 +59,6 @@ Odometry = namedtuple('Odometry', 'stamp_ns x y qz qw linear angular')
 # [ns]), 'wall' (data: (x, y) in the map where it touched) or 'robot' (data: (other, whether
 # this one was driving towards it, x, y)).
 Event = namedtuple('Event', 'kind robot data')
-
-
-def _stamp(held):
-    return held[0]
 
 
 class PlacementError(ValueError):
@@ -162,7 +159,7 @@ class World:
     def hold(self, i, stamp_ns, linear, angular):
         """Keep a command stamped ahead of the clock for robot i; it applies at its stamp."""
         # After those of the same stamp: of two commands for one moment the later counts.
-        bisect.insort(self.early[i], (stamp_ns, linear, angular), key=_stamp)
+        bisect.insort(self.early[i], (stamp_ns, linear, angular), key=itemgetter(0))
         self.has_early[i] = True
         self.resting = False
 
@@ -310,7 +307,7 @@ class World:
                 stamp_ns, linear, angular = early.pop(0)
                 due.append((stamp_ns, i, linear, angular))
             self.has_early[i] = bool(early)
-        due.sort(key=_stamp)  # stable: one robot's keep their order
+        due.sort(key=itemgetter(0))  # stable: one robot's keep their order
         return due
 
     def _solid_step(self, now_ns):
