@@ -147,8 +147,7 @@ class UnicycleSim(Node):
             self._build(stepped)
 
     def _build(self, stepped):
-        self.params = declare(self, PARAMETERS, on_change=self._on_parameter)
-        p = self.params
+        p = self.params = declare(self, PARAMETERS, on_change=self._on_parameter)
         if p.publish_clock and self.get_parameter('use_sim_time').value:
             raise ParameterError("parameter 'publish_clock' is true, so this node owns time: "
                                  "'use_sim_time' must be false for it")
@@ -338,9 +337,8 @@ class UnicycleSim(Node):
 
     def _odometry_layout(self):
         """Lay every robot's odometry bytes out for the current frames and covariances."""
-        p = self.params
-        return OdometryLayout(self._frames(), covariance(p.pose_covariance_diagonal),
-                              covariance(p.twist_covariance_diagonal))
+        return OdometryLayout(self._frames(), covariance(self.params.pose_covariance_diagonal),
+                              covariance(self.params.twist_covariance_diagonal))
 
     def publish_odom(self, odometry=None):
         """Publish every robot's odometry (the world's, by default), /tf, the world's topics."""
