@@ -190,12 +190,10 @@ class Lockstep:
         for node in self.nodes:
             if node is self.clock_owner:
                 continue
-            counter = self._counters.get(node)
-            if counter is not None and counter.clock_ns not in (None, now_ns):
-                yield f'{self._names[node]} to take its /clock'  # seen without rclpy
-                return
-            clock = node.get_clock()  # on sim time (use_sim_time) while ROS time is active
-            if clock.ros_time_is_active and clock.now().nanoseconds != now_ns:
+            counter, clock = self._counters.get(node), node.get_clock()
+            # Seen without rclpy first; the node clock is on sim time while ROS time is active.
+            if ((counter is not None and counter.clock_ns not in (None, now_ns))
+                    or (clock.ros_time_is_active and clock.now().nanoseconds != now_ns)):
                 yield f'{self._names[node]} to take its /clock'
                 return
             for timer in node.timers:
