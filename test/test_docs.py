@@ -40,6 +40,7 @@ import os
 from pathlib import Path
 import re
 import shlex
+import signal
 import subprocess
 import sys
 
@@ -47,6 +48,7 @@ from motion_challenges.motion_fleet import motion_classes
 from motion_challenges.motion_fleet import MotionFleet
 import pytest
 from rclpy.parameter import Parameter
+from sim_diffdrive import harness
 from sim_diffdrive.dds_teardown import held_context
 from sim_diffdrive.harness import SimGraph
 from sim_diffdrive.parameters import live_parameters
@@ -297,6 +299,27 @@ def test_python_examples_run(index, procs, tmp_path):
         printed = [line for line in result.stdout.splitlines(keepends=True)
                    if not FAST_DDS_LOG.search(re.sub(r'\x1b\[[0-9;]*m', '', line))]
         assert ''.join(printed) == following[0][3]
+
+
+def test_the_lockstep_example_stopped_with_ctrl_c_stops_the_robot_and_says_goodbye(procs, graph):
+    # Under rclpy's own SIGINT handler the example's goodbye could not go (the simulator held
+    # the clock lockstep_timeout), and a call that Ctrl-C interrupted raised RCLError, 2 of 4.
+    block = next(block for block in PYTHON if 'take_part(self)' in block[3])
+    sim = procs('sim', 'unicycle_sim', '--ros-args', '-p', 'publish_clock:=true')  # 3 s of it
+    probe = graph.probe(use_sim_time=False)
+    # A job started in the background by a script ignores SIGINT (POSIX): not Ctrl-C's case.
+    example = harness.start_python('import signal\nsignal.signal(signal.SIGINT, '
+                                   'signal.default_int_handler)\n' + block[3])
+    try:
+        assert graph.spin_until(lambda: probe.moving, 30.0), example.describe() + sim.describe()
+        example.send(signal.SIGINT)
+        assert example.wait(20.0) == 0, example.describe()
+    finally:
+        example.kill()
+    assert 'Traceback' not in example.output() and 'Drove' not in example.output()
+    assert graph.spin_until(lambda: not probe.moving, 5.0)
+    assert graph.spin_until(lambda: 'Lockstep: /drive_one_metre left at' in sim.output(), 5.0)
+    assert 'going on without' not in sim.output(), sim.describe()
 
 
 def test_every_link_and_named_file_exists():

@@ -23,6 +23,7 @@ import sys
 import time
 
 from geometry_msgs.msg import Twist
+from nav_msgs.msg import Odometry
 import pytest
 import rclpy
 from rclpy.node import Node
@@ -319,11 +320,15 @@ def test_a_topic_nobody_in_the_graph_hears_is_named_as_its_node_joins(graph, cap
                           parameter_overrides=graph.sim_time_params()))
     for topic in ('cmd_vell', 'cmd_vel'):
         node.create_publisher(Twist, topic, 10)
+    for topic in ('laser', 'odom'):  # and one on laser, for scan
+        node.create_subscription(Odometry, topic, lambda msg: None, 10)
     graph.step()
     err = capfd.readouterr().err
     assert '[controller]: Nothing in the graph subscribes (yet) to /cmd_vell, which it ' \
         'publishes: a topic named wrong?' in err
-    assert err.count('Nothing in the graph subscribes') == 1  # its nodes: on what they hear
+    assert '[controller]: Nothing in the graph publishes (yet) /laser, which it subscribes ' \
+        'to: a topic named wrong?' in err
+    assert err.count('Nothing in the graph') == 2  # its nodes: on what they hear
 
 
 def test_waiting_for_odometry_that_never_comes_says_so_with_the_process_log(graph):

@@ -32,6 +32,7 @@ from sim_diffdrive.cdr import read_string
 from sim_diffdrive.cdr import string_message
 from sim_diffdrive.dds_teardown import held_context
 from sim_diffdrive.harness import isolated_domain_id
+from sim_diffdrive.lockstep import participant as participant_module
 from sim_diffdrive.lockstep.counter import MessageCounter
 from sim_diffdrive.lockstep.handshake import Answer
 from sim_diffdrive.lockstep.handshake import Roster
@@ -196,7 +197,11 @@ def test_a_node_whose_simulator_started_again_is_told_once(ros_context):
         lockstep._on_roster(String(data=Roster('/sim', step_ns).encode()))
         # Another simulator on the same clock (its rosters interleave): not a restart.
         lockstep._on_roster(String(data=Roster('/other_sim', 10_000_000).encode()))
-    assert warned == ['Simulated time went back from 3.020 s to 0.160 s (/sim restarted?): times '
+        if step_ns == 3_020_000_000:  # it ran on to 5.82 s with no roster (nobody joined)
+            for clock_ns in (5_820_000_000, 140_000_000):  # and heard the new clock first
+                lockstep.counter.clock_ns = clock_ns
+                lockstep.answer()
+    assert warned == ['Simulated time went back from 5.820 s to 0.160 s (/sim restarted?): times '
                       'this node took from the old clock lie ahead of the new one']
     lockstep.leave()
     node.destroy_node()
@@ -228,3 +233,22 @@ def test_a_node_whose_simulator_stops_listening_says_so_once(capfd):
         assert (''.join(err) + capfd.readouterr().err).count('no longer listens') == 1
         executor.shutdown()
         node.destroy_node()
+
+
+def test_a_participant_says_which_of_its_topics_nothing_matches(graph, capfd, monkeypatch):
+    # A student's controller in its own process published on cmdvel and waited, as time.md
+    # says, until the robot's cmd_vel was counted: for ever, and nothing said why.
+    monkeypatch.setattr(participant_module, 'UNMATCHED_CHECK_S', 0.2)
+    graph.sim(stepped=False, publish_clock=True, lockstep=True, real_time_factor=5.0)
+    driver = graph.node(Driver, namespace='student')  # publishes /student/cmd_vel
+    assert graph.spin_until(lambda: driver.lockstep.joined, 10.0)
+    err = []
+    assert graph.spin_until(lambda: err.append(capfd.readouterr().err) or 'Nothing' in err[-1])
+    graph.spin_for(0.5)  # said once
+    err = ''.join(err) + capfd.readouterr().err
+    assert err.count('driver]: Nothing') == 2, err
+    assert ('driver]: Nothing subscribes (yet) to /student/cmd_vel, which it publishes: a topic '
+            'named wrong?') in err
+    assert ('driver]: Nothing publishes (yet) /student/odom, which it subscribes to: a topic '
+            'named wrong?') in err
+    driver.lockstep.leave()

@@ -44,6 +44,9 @@ from sim_diffdrive.lockstep.handshake import roster_topic
 from std_msgs.msg import String
 
 _NS = 1_000_000_000
+# How long after joining a participant says which of its topics nothing in the graph matches
+# [s, wall]: discovery of the simulator's topics may come after the roster that counts it.
+UNMATCHED_CHECK_S = 3.0
 ANSWER_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
 ROSTER_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
@@ -62,6 +65,8 @@ class Participant:
         # The latest roster from the clock owner, and when it came [s, monotonic].
         self.roster = self.roster_wall = None
         self._roster_steps = {}  # owner -> the time of its latest roster [ns]
+        self._latest_ns = 0  # the latest /clock answered at, since time last went back [ns]
+        self._check_wall = None  # when to say which topics nothing matches [s, monotonic]
         self._last = None
         self._last_clock_messages = 0
         self.left = False
@@ -173,6 +178,11 @@ class Participant:
                 raise
 
     def _answer(self, leaving):
+        self._latest_ns = max(self._latest_ns, self.counter.clock_ns or 0)
+        if self._check_wall is not None and time.monotonic() >= self._check_wall:
+            self._check_wall = None  # once: a user's controller waiting on a misnamed topic
+            for node in self._nodes:
+                say_unmatched(node)
         if self.left or self._publisher.get_subscription_count() == 0:
             return  # gone, or no simulator steps in lockstep (or none yet): spare the hot path
         step_ns, counts = self._totals()
@@ -325,10 +335,13 @@ class Participant:
         last_ns = self._roster_steps.get(roster.owner)
         self._roster_steps[roster.owner] = roster.step_ns
         if last_ns is not None and roster.step_ns < last_ns:  # once: rosters go on from there
+            # From the latest time this node answered for: a roster comes when who takes
+            # part changes, and the last may be from when it joined.
             self.node.get_logger().warning(
-                f'Simulated time went back from {last_ns / _NS:.3f} s to '
+                f'Simulated time went back from {max(last_ns, self._latest_ns) / _NS:.3f} s to '
                 f'{roster.step_ns / _NS:.3f} s ({roster.owner} restarted?): times this node '
                 'took from the old clock lie ahead of the new one')
+            self._latest_ns = roster.step_ns
         self.owner = roster.owner
         dropped_ns = roster.dropped.get(self.id)
         if dropped_ns is not None and dropped_ns != self.dropped_ns:
@@ -341,6 +354,8 @@ class Participant:
         joined = self.id in roster.members
         if joined != self.joined:
             self.joined = joined
+            if joined and self._check_wall is None:
+                self._check_wall = time.monotonic() + UNMATCHED_CHECK_S
             self.node.get_logger().info(
                 f'Taking part in lockstep with {roster.owner}' if joined
                 else f'No longer in lockstep with {roster.owner}')
@@ -435,6 +450,23 @@ def _settled_ns(node, counter):
         if due is not None and due <= 0:
             return None
     return clock_ns
+
+
+def say_unmatched(node, where=''):
+    """Say which topics node publishes that nothing subscribes to, and the other way round."""
+    clock = clock_topic(node)
+    own = {'/rosout', '/parameter_events', clock, answer_topic(clock), roster_topic(clock)}
+    unheard = sorted(pub.topic_name for pub in node.publishers
+                     if pub.topic_name not in own and not pub.get_subscription_count())
+    unfed = sorted(sub.topic_name for sub in node.subscriptions
+                   if sub.topic_name not in own and not node.count_publishers(sub.topic_name))
+    logger = node.get_logger()
+    if unheard:
+        logger.info(f'Nothing{where} subscribes (yet) to {", ".join(unheard)}, which it '
+                    'publishes: a topic named wrong?')
+    if unfed:
+        logger.info(f'Nothing{where} publishes (yet) {", ".join(unfed)}, which it subscribes '
+                    'to: a topic named wrong?')
 
 
 def take_part(node):

@@ -37,8 +37,8 @@ from sim_diffdrive.dds_teardown import held_context
 from sim_diffdrive.lockstep.counter import clock_topic
 from sim_diffdrive.lockstep.counter import MessageCounter
 from sim_diffdrive.lockstep.handshake import Answer
-from sim_diffdrive.lockstep.handshake import answer_topic
 from sim_diffdrive.lockstep.handshake import StepLedger
+from sim_diffdrive.lockstep.participant import say_unmatched
 from sim_diffdrive.sim.clock import SteppedClock
 from sim_diffdrive.sim.node import PARAMETERS
 from sim_diffdrive.sim.node import UnicycleSim
@@ -412,9 +412,4 @@ def _say_what_it_misses(node):
             'with node()')
     if isinstance(node, UnicycleSim) or owns_a_clock:
         return  # a simulator publishes for whoever listens
-    quiet = ('/rosout', '/parameter_events', answer_topic(clock_topic(node)))  # lockstep's
-    unheard = sorted(pub.topic_name for pub in node.publishers
-                     if not pub.get_subscription_count() and pub.topic_name not in quiet)
-    if unheard:  # said once, as it joins: pytest shows it with a test that failed
-        node.get_logger().info(f'Nothing in the graph subscribes (yet) to {", ".join(unheard)}, '
-                               'which it publishes: a topic named wrong?')
+    say_unmatched(node, ' in the graph')  # once, as it joins: pytest shows it if a test fails
