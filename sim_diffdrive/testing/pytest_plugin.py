@@ -21,6 +21,11 @@ rclpy is imported only when a test asks for the fixture (README: Test your own c
 import pytest
 
 
+def pytest_configure(config):
+    """Leave out a warning users cannot act on: lark (of rosidl) imports sre_parse."""
+    config.addinivalue_line('filterwarnings', "ignore:module 'sre_:DeprecationWarning")
+
+
 @pytest.fixture
 def sim_graph():
     """Yield a SimGraph (own context, isolated domain); close it and shut down afterwards."""
