@@ -219,6 +219,12 @@ def test_the_tf_chain_runs_from_the_map_to_each_robots_scanner(graph):
                      (f'{robot}/base_footprint', f'{robot}/base_scan')):
             assert edge in edges
     assert graph.scan('r1').header.frame_id == 'r1/base_scan'
+    # A base frame set live gets the scanner too: the scans' frame stays in the tree.
+    sim = graph.clock_owner
+    assert sim.set_parameters([Parameter('base_frame_id', value='base_link')])[0].successful
+    graph.spin_until(lambda: ('r2/base_link', 'r2/base_scan') in edges, timeout=10.0)
+    graph.step()
+    assert {('r1/odom', 'r1/base_link'), ('r1/base_link', 'r1/base_scan')} <= edges
 
 
 def scans_with(seed, steps=0.5):
@@ -421,3 +427,15 @@ def test_a_scan_rate_between_whole_steps_is_the_nearest_and_said(graph, capfd):
     assert ('scan_rate_hz 30 is not rate_hz 50 over a whole number of steps: a scan every 2 '
             'step(s), at 25 Hz') in err
     assert 'scans at 25 Hz' in err
+
+
+def test_map_to_odom_can_be_left_to_a_localization(graph):
+    # AMCL publishes map -> odom itself: two publishers of one transform fight in tf2.
+    graph.sim(map_file=ROOM, initial_x=0.5, initial_y=0.3, publish_map_odom_tf=False)
+    listener = graph.add(Node('listener', context=graph.context))
+    edges = set()
+    listener.create_subscription(TFMessage, '/tf', lambda msg: edges.update(
+        (t.header.frame_id, t.child_frame_id) for t in msg.transforms), 100)
+    graph.step_for(0.2)
+    assert edges == {('odom', 'base_footprint')}
+    assert graph.scan() is not None  # the rest of the world as before

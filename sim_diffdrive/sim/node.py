@@ -281,7 +281,7 @@ class UnicycleSim(Node):
             if self._tf is not None:
                 self._tf.set_frames(self._frames())
             if self.surroundings:
-                self.surroundings.set_frames(self._frames())
+                self.surroundings.set_frames(self._frames(), self.now_ns(), self.taps)
         elif name == 'real_time_factor':
             self.clock.set_real_time_factor(value)
         elif name == 'path_length':

@@ -53,6 +53,8 @@ WORLD_PARAMETERS = (
          'and at each other, and scan it; empty = the empty plane (no walls, no scan).'),
     Spec('map_frame_id', 'map', 'Frame of the map (REP 105), shared by every robot: map -> '
          "each robot's odometry frame goes on /tf; initialpose may be given in it."),
+    Spec('publish_map_odom_tf', True, 'With map_file: publish map -> odom on /tf; false when '
+         'a localization (AMCL, say) publishes it.'),
     Spec('robot_radius', 0.105, "Radius of a robot's disc [m] (with map_file): it stops where "
          'the disc touches a wall or another robot.', low=0.0, high=100.0, low_open=True),
     Spec('scan_rate_hz', 10.0, "LaserScan rate on each robot's scan [Hz] (with map_file): "
@@ -120,25 +122,28 @@ class Surroundings:
         self._map_pub = node.create_publisher(OccupancyGrid, 'map', LATCHED_QOS)
         self._static_pub = node.create_publisher(TFMessage, '/tf_static', LATCHED_QOS)
         self._map_tf = OdomTransform(node)  # map -> odom, laid out by start()
+        self._publish_map_tf = p.publish_map_odom_tf
 
     def start(self, frames, stamp_ns, taps=None):
-        """Publish (and tap) the map and base -> scan (frames: (odom, base) per robot)."""
+        """Publish (and tap) the map, then set_frames (frames: (odom, base) per robot)."""
         map_msg = self.map_message(stamp_ns)
         self._map_pub.publish(map_msg)
-        self.set_frames(frames)
-        # The identity (a message's quaternion is w = 1 unless set), stamped now.
+        if taps:
+            taps.write(self._map_pub.topic_name, map_msg, stamp_ns)
+        self.set_frames(frames, stamp_ns, taps)
+
+    def set_frames(self, frames, stamp_ns, taps=None):
+        """Lay map -> odom out anew for frames, (odom, base) per robot; publish base -> scan."""
+        self._map_tf.set_frames((self.map_frame, odom) for odom, _ in frames)
+        # The identity (a message's quaternion is w = 1 unless set), stamped now: a base frame
+        # set live gets its scanner too, or no tree would reach the scans' frame.
         stamp = Time(nanoseconds=stamp_ns).to_msg()
         static = TFMessage(transforms=[
             TransformStamped(header=Header(stamp=stamp, frame_id=base), child_frame_id=scan)
             for (_, base), scan in zip(frames, self._scan_frames)])
         self._static_pub.publish(static)
         if taps:
-            taps.write(self._map_pub.topic_name, map_msg, stamp_ns)
             taps.write(self._static_pub.topic_name, static, stamp_ns)
-
-    def set_frames(self, frames):
-        """Lay map -> odom out anew for frames, (odom, base) per robot."""
-        self._map_tf.set_frames((self.map_frame, odom) for odom, _ in frames)
 
     def map_message(self, stamp_ns):
         """Return the map as a nav_msgs/OccupancyGrid stamped stamp_ns."""
@@ -157,7 +162,7 @@ class Surroundings:
 
     def publish(self, stamp_ns, world, taps):
         """Publish map -> odom with this step's odometry, and the scans when they are due."""
-        if self._map_tf.listened(taps):
+        if self._publish_map_tf and self._map_tf.listened(taps):
             half = 0.5 * world.map_yaw
             self._map_tf.publish(stamp_ns, world.map_x, world.map_y, np.sin(half), np.cos(half),
                                  taps)
