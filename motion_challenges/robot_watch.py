@@ -152,7 +152,8 @@ class RobotWatch:
             if not lockstep.counted_on(cmd_topic):
                 return f'the node that drives on {cmd_topic} to join the lockstep'
         if node.sim_time and node.now_ns() == 0:  # before odometry: it waits for the clock
-            return f"simulated time on {node.resolve_topic_name('/clock')} (use_sim_time is true)"
+            clock = node.resolve_topic_name('/clock')
+            return f'simulated time on {clock} (use_sim_time is true)'
         if node.odom is None and (node.needs_odom or node.params.wait_for_odom
                                   or node.count_publishers(self._odom_topic)):
             # Without wait_for_odom open loop needs none, but where there is some, the closing
@@ -279,7 +280,8 @@ class RobotWatch:
         missing = self.missing()
         if not missing:
             return
-        if time.monotonic() - self._wall_start > node.params.start_timeout:
+        waited = time.monotonic() - self._wall_start
+        if waited > node.params.start_timeout:
             hint = ('it runs but has not heard this node yet (a slow or lossy link: raise '
                     'start_timeout; a process killed while it ran on this machine can leave '
                     'it deaf to new ones: restart it).' if 'lockstep' in missing else

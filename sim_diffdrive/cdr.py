@@ -61,7 +61,8 @@ def pad(body, alignment):
 
 def _header(body, frame_id, child_frame_id):
     """Append a zero stamp and the two frames to body, padded for the doubles; return body."""
-    body += bytes(8) + cdr_string(frame_id)
+    body += bytes(8)
+    body += cdr_string(frame_id)
     pad(body, 4)
     body += cdr_string(child_frame_id)
     pad(body, 8)

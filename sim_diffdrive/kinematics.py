@@ -57,7 +57,8 @@ def normalize_angles(angles):
     wrapped = np.where(angles > math.pi, angles - _TWO_PI,
                        np.where(angles < -math.pi, angles + _TWO_PI, angles))
     wrapped[wrapped == -math.pi] = math.pi
-    for i in np.flatnonzero(np.abs(angles) > _ONE_TURN_WRAP).tolist():
+    far = np.flatnonzero(np.abs(angles) > _ONE_TURN_WRAP)
+    for i in far.tolist():
         wrapped[i] = normalize_angle(float(angles[i]))
     return wrapped
 

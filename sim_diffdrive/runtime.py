@@ -126,7 +126,10 @@ def run(make_node, args=None, name='motion_challenges'):
     # `kill -USR1 <pid>` writes every thread's Python stack to stderr and the run goes on: where
     # a process that does not exit is stuck, even inside rclpy or DDS (harness.Process.kill).
     faulthandler.register(signal.SIGUSR1)
-    nodes, executor, hold, exit_code = [], None, None, EXIT_FAILED
+    nodes = []
+    executor = None
+    hold = None
+    exit_code = EXIT_FAILED
     try:
         # The DDS participant outlives every node, even one refused while it is built, and goes
         # last, the safe way (sim_diffdrive/dds_teardown.py).

@@ -93,10 +93,12 @@ class MessageCounter:
         self.unheard_expired = []
         self._ignored = ignored_topics(clock_topic)
         self.listeners = []
-        self.sent, self.heard = {}, {}
+        self.sent = {}
+        self.heard = {}
         # The highest header stamp [ns] published / handled per topic: a foreign node's stale
         # or zero stamp never lowers what was heard (-1: nothing heard yet, see ``unheard_s``).
-        self.sent_stamp, self.heard_stamp = {}, {}
+        self.sent_stamp = {}
+        self.heard_stamp = {}
         self.clock_ns = None
         self.clock_messages = 0  # /clock messages handled, repeats included
         # The last step the clock took [ns] (None until it has stepped), and, while the

@@ -260,9 +260,10 @@ class StepLedger:
         for pid, member in self.members.items():
             if not member.synced or member.leaving:
                 continue
+            offset = member.offset
             for topic, heard in member.answer.heard.items():
                 if topic not in stamps:
-                    due = sent.get(topic, 0) - heard - member.offset.get(topic, 0)
+                    due = sent.get(topic, 0) - heard - offset.get(topic, 0)
                     if due:
                         debts[(pid, topic)] = due
         return debts

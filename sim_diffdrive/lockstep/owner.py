@@ -123,9 +123,11 @@ class LockstepOwner:
         its schedule); budget_s: the wall time a step may take at real_time_factor; period_s:
         how often the clock looks without news.
         """
+        sim = self.sim
+        ledger = self.ledger
         self._own_stall(now, wall, period_s)
         waited = now - wall
-        if len(self.ledger.members) <= 1:
+        if len(ledger.members) <= 1:
             self._publish_roster(wall=wall)
             # Freewheel until the first answer: the steps the timer's period holds and one
             # more (a late tick), no more.  After a stall of the simulator the clock goes on
@@ -135,12 +137,12 @@ class LockstepOwner:
             return min(int(waited / budget_s), most), False
         if self._waiting is None:
             # Worked out again only after news; the clock timer in between only paces.
-            self._waiting = self.ledger.waiting_for(self.sim.now_ns())
+            self._waiting = ledger.waiting_for(sim.now_ns())
         waiting = self._waiting
         resend = self._publish_roster(waiting, wall)
         if waiting:
             held = waited - self._stalled_s  # while the simulator ran, and could hear
-            if held <= self.sim.params.lockstep_timeout or not self._give_up(waiting, held):
+            if held <= sim.params.lockstep_timeout or not self._give_up(waiting, held):
                 return 0, resend
         if waited >= budget_s:
             self._step_s += _STEP_WEIGHT * (waited - self._step_s)

@@ -310,8 +310,10 @@ class Participant:
         if state.settled_ns == settled_ns:
             return
         if state.settled_ns is not None:
-            self._settled_at[state.settled_ns] -= 1
-            if not self._settled_at[state.settled_ns]:
+            left = self._settled_at[state.settled_ns] - 1
+            if left:
+                self._settled_at[state.settled_ns] = left
+            else:
                 del self._settled_at[state.settled_ns]
         if settled_ns is not None:
             self._settled_at[settled_ns] = self._settled_at.get(settled_ns, 0) + 1

@@ -54,11 +54,12 @@ _OWNERS_CHECK_S = 1.0
 
 def make_clock(sim, stepped=False):
     """Return the clock sim.params ask for (call before the robots' subscriptions exist)."""
-    if not sim.params.publish_clock:
+    p = sim.params
+    if not p.publish_clock:
         return FollowedClock(sim)
     if stepped:
         return SteppedClock(sim)
-    return LockstepClock(sim) if sim.params.lockstep else FreeClock(sim)
+    return LockstepClock(sim) if p.lockstep else FreeClock(sim)
 
 
 class FollowedClock:

@@ -147,7 +147,8 @@ class UnicycleSim(Node):
             self._build(stepped)
 
     def _build(self, stepped):
-        p = self.params = declare(self, PARAMETERS, on_change=self._on_parameter)
+        self.params = declare(self, PARAMETERS, on_change=self._on_parameter)
+        p = self.params
         if p.publish_clock and self.get_parameter('use_sim_time').value:
             raise ParameterError("parameter 'publish_clock' is true, so this node owns time: "
                                  "'use_sim_time' must be false for it")
@@ -175,7 +176,8 @@ class UnicycleSim(Node):
         self.step_ns = round(_NS / p.rate_hz)
         self.clock = make_clock(self, stepped)
         self.taps = open_taps(self)
-        self.robots = [Robot(self, i, name, self.take_command) for i, name in enumerate(names)]
+        self.robots = [Robot(self, i, name, self.take_command)
+                       for i, name in enumerate(names)]
         # A frame is checked against the other's value and the robots' prefixes, which a Spec
         # cannot know; added after declare()'s callbacks, this one runs before them.
         self.add_on_set_parameters_callback(self._refuse_bad_frames)
@@ -207,8 +209,9 @@ class UnicycleSim(Node):
 
     def _say_who_is_outside_the_map(self, names):
         """Warn about each robot that starts outside the map: nothing is solid out there."""
+        grid = self.surroundings.grid
         for name, x, y in zip(names, *self.world.map_poses()[:2]):
-            if outside := self.surroundings.grid.outside(float(x), float(y)):
+            if outside := grid.outside(float(x), float(y)):
                 self.get_logger().warning(f"{f'{name}: ' if name else ''}Starts at ({x:.3f}, "
                                           f'{y:.3f}) in {self.surroundings.map_frame}, {outside}')
 
@@ -337,8 +340,9 @@ class UnicycleSim(Node):
 
     def _odometry_layout(self):
         """Lay every robot's odometry bytes out for the current frames and covariances."""
-        return OdometryLayout(self._frames(), covariance(self.params.pose_covariance_diagonal),
-                              covariance(self.params.twist_covariance_diagonal))
+        p = self.params
+        return OdometryLayout(self._frames(), covariance(p.pose_covariance_diagonal),
+                              covariance(p.twist_covariance_diagonal))
 
     def publish_odom(self, odometry=None):
         """Publish every robot's odometry (the world's, by default), /tf, the world's topics."""
@@ -346,7 +350,10 @@ class UnicycleSim(Node):
         stamp_ns, x, y, qz, qw, linear, angular = odometry or world.odometry()
         if world.events:  # said before the odometry that shows them goes out
             self._log_events()
-        odometry = self._odometry.serialize(*divmod(stamp_ns, _NS), x, y, qz, qw, linear, angular)
+        sec, nanosec = divmod(stamp_ns, _NS)
+        each = world.one_by_one  # lists of floats; else arrays
+        layout = self._odometry
+        odometry = layout.serialize(sec, nanosec, x, y, qz, qw, linear, angular)
         robots = self.robots
         for robot, data in zip(robots, odometry):
             robot.odom_pub.publish(data)
@@ -362,7 +369,7 @@ class UnicycleSim(Node):
         if tapping:
             taps.step(stamp_ns, world)
         if self._odom_count % self._path_every == 0:
-            poses = (x, y, qz, qw) if world.one_by_one else (v.tolist() for v in (x, y, qz, qw))
+            poses = (x, y, qz, qw) if each else (v.tolist() for v in (x, y, qz, qw))
             for robot, *pose in zip(robots, *poses):
                 robot.record_path(stamp_ns, *pose)
         self._odom_count += 1

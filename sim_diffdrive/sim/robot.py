@@ -311,7 +311,8 @@ class DrivenPath:
 
     def messages(self, frame_id):
         """Return the path as a list of PoseStamped in frame_id."""
-        for i in range(max(0, len(self._poses) - self._unconverted), len(self._poses)):
+        new = min(self._unconverted, len(self._poses))
+        for i in range(len(self._poses) - new, len(self._poses)):
             stamp_ns, x, y, qz, qw = self._poses[i]
             pose = PoseStamped()
             pose.header.frame_id = frame_id

@@ -27,7 +27,6 @@ its time, and after the step the pairs that came within reach are searched along
 import bisect
 from collections import namedtuple
 import math
-from operator import itemgetter
 
 import numpy as np
 from sim_diffdrive.angles import normalize_angle
@@ -59,6 +58,10 @@ Odometry = namedtuple('Odometry', 'stamp_ns x y qz qw linear angular')
 # [ns]), 'wall' (data: (x, y) in the map where it touched) or 'robot' (data: (other, whether
 # this one was driving towards it, x, y)).
 Event = namedtuple('Event', 'kind robot data')
+
+
+def _stamp(held):
+    return held[0]
 
 
 class PlacementError(ValueError):
@@ -106,8 +109,9 @@ class World:
         # While a step of solid robots runs: per robot that moves, its pose where it began to
         # move and its arcs, timed from _begin_ns (see _collide).
         self._drives, self._begin_ns = None, 0
-        for i in range(n):
-            self._check_place(i, *self._to_map(i, self.x[i], self.y[i], self.yaw[i])[:2])
+        if walls is not None:
+            for i in range(n):
+                self._check_place(i, *self._to_map(i, self.x[i], self.y[i], self.yaw[i])[:2])
 
     def __len__(self):
         return len(self.names)
@@ -159,7 +163,7 @@ class World:
     def hold(self, i, stamp_ns, linear, angular):
         """Keep a command stamped ahead of the clock for robot i; it applies at its stamp."""
         # After those of the same stamp: of two commands for one moment the later counts.
-        bisect.insort(self.early[i], (stamp_ns, linear, angular), key=itemgetter(0))
+        bisect.insort(self.early[i], (stamp_ns, linear, angular), key=_stamp)
         self.has_early[i] = True
         self.resting = False
 
@@ -178,12 +182,14 @@ class World:
 
     def place(self, i, x, y, yaw):
         """Put robot i at (x, y, yaw) in its odometry frame, at rest; forget its commands."""
-        self._check_place(i, *self._to_map(i, x, y, yaw)[:2])
+        if self.walls is not None:
+            self._check_place(i, *self._to_map(i, x, y, yaw)[:2])
         self._rest(i, x, y, yaw)
 
     def place_in_map(self, i, x, y, yaw):
         """Put robot i at (x, y, yaw) in the map, at rest; its odometry goes on where it was."""
-        self._check_place(i, x, y)
+        if self.walls is not None:
+            self._check_place(i, x, y)
         ox, oy, oyaw = float(self.x[i]), float(self.y[i]), float(self.yaw[i])
         turn = normalize_angle(yaw - oyaw)
         c, s = math.cos(turn), math.sin(turn)
@@ -205,7 +211,8 @@ class World:
             targets = [(x, y) for x, y, _ in poses]
             while True:
                 mx, my, _ = self.map_poses()
-                where = [(mx[j], my[j]) if j in refused else targets[j] for j in range(len(self))]
+                where = [(mx[j], my[j]) if j in refused else targets[j]
+                         for j in range(len(self))]
                 errors = {}
                 for i in set(range(len(self))) - set(refused):
                     try:
@@ -235,10 +242,8 @@ class World:
         Raise PlacementError if robot i at (x, y) in the map would be in a wall or a robot.
 
         others: (x, y) in the map of every robot (i's own is not looked at); default: where
-        they are.  On the empty plane (no walls) robots pass through each other: never.
+        they are.
         """
-        if self.walls is None:
-            return
         name = self.names[i] or 'the robot'
         if self.walls.overlaps(x, y):
             raise PlacementError(f'{name} at ({x:.3f}, {y:.3f}) in the map would be inside a '
@@ -307,7 +312,7 @@ class World:
                 stamp_ns, linear, angular = early.pop(0)
                 due.append((stamp_ns, i, linear, angular))
             self.has_early[i] = bool(early)
-        due.sort(key=itemgetter(0))  # stable: one robot's keep their order
+        due.sort(key=_stamp)  # stable: one robot's keep their order
         return due
 
     def _solid_step(self, now_ns):
@@ -328,11 +333,13 @@ class World:
                    | (self.linear != self.target_linear) | (self.angular != self.target_angular))
         for i in np.flatnonzero(special).tolist():
             self._advance(i, now_ns)
-        index = np.flatnonzero((integrated < now_ns) & self.moving())
+        moving = (integrated < now_ns) & self.moving()
+        index = np.flatnonzero(moving)
         if index.size:
+            dt = (now_ns - integrated[index]) / _NS
             self.x[index], self.y[index], self.yaw[index] = integrate_all(
                 self.x[index], self.y[index], self.yaw[index], self.linear[index],
-                self.angular[index], (now_ns - integrated[index]) / _NS)
+                self.angular[index], dt)
         integrated[integrated < now_ns] = now_ns
 
     def _advance(self, i, now_ns):

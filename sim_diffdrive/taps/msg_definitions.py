@@ -37,7 +37,8 @@ _PRIMITIVES = frozenset((
 
 def type_name(message_class):
     """Return a message class's ROS 2 type name, e.g. 'nav_msgs/msg/Odometry'."""
-    return f"{message_class.__module__.partition('.')[0]}/msg/{message_class.__name__}"
+    package = message_class.__module__.partition('.')[0]
+    return f'{package}/msg/{message_class.__name__}'
 
 
 def message_class(node, topic, msg, types):

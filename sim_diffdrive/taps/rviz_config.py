@@ -87,7 +87,8 @@ def _with_topics(display, topics):
     display = copy.deepcopy(display)
     for key in _TOPIC_KEYS:
         if key in display:
-            display[key]['Value'] = f"{topics}/{display[key]['Value'].lstrip('/')}"
+            topic = display[key]['Value'].lstrip('/')
+            display[key]['Value'] = f'{topics}/{topic}'
     return display
 
 

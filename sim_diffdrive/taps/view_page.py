@@ -101,7 +101,8 @@ def confine(html):
 
 def follow(html, run):
     """Return index.html that opens the next run to serve this port (see RUN_PATH)."""
-    return html.replace(b'</body>', _FOLLOW.replace('RUN', run).encode() + b'</body>', 1)
+    script = _FOLLOW.replace('RUN', run).encode()
+    return html.replace(b'</body>', script + b'</body>', 1)
 
 
 class ViewerPage:
@@ -149,7 +150,8 @@ class _PageHandler(BaseHTTPRequestHandler):
         if path == '/' and 'url=' not in query:  # http://127.0.0.1:PORT/ opens this run
             self._send(302, [('Location', page_url(port, run[1]))], b'')
             return
-        upstream = http.client.HTTPConnection('127.0.0.1', self.server.upstream_port, timeout=10.0)
+        upstream = http.client.HTTPConnection(
+            '127.0.0.1', self.server.upstream_port, timeout=10.0)
         try:
             try:
                 upstream.request('GET', path)

@@ -110,7 +110,8 @@ class Lockstep:
         # An EventsExecutor lets go of a removed node's entities when it next runs, after the
         # events it has queued for them: a task queued now runs after both.  Destroyed before,
         # the node would have its callbacks run on its destroyed publishers and timers.
-        self.spin_until(self.executor.create_task(lambda: None).done, 10.0, poll=0.005)
+        released = self.executor.create_task(lambda: None)
+        self.spin_until(released.done, 10.0, poll=0.005)
         self.nodes.remove(node)
         self._names.pop(node)
         if node is self.clock_owner:
@@ -165,7 +166,8 @@ class Lockstep:
         # Count traffic from here on: what was sent before the nodes matched may never arrive.
         now_ns = self.now_ns
         for node in self.nodes:
-            counter = self._counters[node] = MessageCounter.of(node, clock_topic(node), fixed=True)
+            counter = self._counters[node] = MessageCounter.of(node, clock_topic(node),
+                                                               fixed=True)
             counter.wrap_new()  # entities made since it was last looked at
             answer = self._answers.get(node)
             if answer is None:  # it joins
@@ -187,13 +189,16 @@ class Lockstep:
         # The nodes first: while a step settles, a node yet to take its /clock or run a due
         # timer is found at a glance, where the ledger weighs every member's every topic (and
         # counts the caught-up members in, once nothing is owed).
+        counters = self._counters
         for node in self.nodes:
             if node is self.clock_owner:
                 continue
-            counter, clock = self._counters.get(node), node.get_clock()
-            # Seen without rclpy first; the node clock is on sim time while ROS time is active.
-            if ((counter is not None and counter.clock_ns not in (None, now_ns))
-                    or (clock.ros_time_is_active and clock.now().nanoseconds != now_ns)):
+            counter = counters.get(node)
+            if counter is not None and counter.clock_ns not in (None, now_ns):
+                yield f'{self._names[node]} to take its /clock'  # seen without rclpy
+                return
+            clock = node.get_clock()  # on sim time (use_sim_time) while ROS time is active
+            if clock.ros_time_is_active and clock.now().nanoseconds != now_ns:
                 yield f'{self._names[node]} to take its /clock'
                 return
             for timer in node.timers:
