@@ -48,9 +48,7 @@ from sim_diffdrive.harness import ros_params
 from sim_diffdrive.harness import stamp_s
 from sim_diffdrive.harness import twist as command
 from sim_diffdrive.harness import twist_of as twist
-from sim_diffdrive.sim import node as sim_node
 from sim_diffdrive.sim.node import UnicycleSim
-from sim_diffdrive.throttle import Throttle
 
 NS = 1_000_000_000
 SIM_CLOCK = ('publish_clock:=true', 'real_time_factor:=4.0', 'rate_hz:=25.0')
@@ -393,25 +391,3 @@ def test_two_controllers_at_once_are_warned_about_once(graph, capfd):
     output = capfd.readouterr().err
     assert output.count('nodes publish on') == 1, output
     assert f'2 nodes publish on {namespace}/cmd_vel' in output
-
-
-def test_a_robot_stopped_for_want_of_cmd_vel_again_and_again_is_said_once_per_period(
-        graph, capfd, monkeypatch):
-    # A teleop that publishes on a key press only: every key makes a stop for want of cmd_vel.
-    # One line per TIMEOUT_LOG_S (a wall clock of the test's here), counting the stops between.
-    wall = [0.0]
-    monkeypatch.setattr(sim_node, 'Throttle',
-                        lambda period_s: Throttle(period_s, clock=lambda: wall[0]))
-    graph.sim(cmd_vel_timeout=0.1)
-    probe = graph.probe()
-    for key in range(4):
-        wall[0] = 0.0 if key < 3 else sim_node.TIMEOUT_LOG_S
-        probe.send(0.5, 0.0)
-        graph.step_until(lambda: moving(graph.odometry.odom), 2.0)
-        graph.step_until(lambda: not moving(graph.odometry.odom), 2.0)
-    lines = [line for line in capfd.readouterr().err.splitlines() if 'No cmd_vel' in line]
-    assert len(lines) == 2, lines
-    assert 'stopped so' not in lines[0]
-    assert lines[1].endswith('s); stopped so 2 more time(s) since the last such line (one line '
-                             'per 10 s at most)'), lines
-    assert graph.pose()[0] == pytest.approx(4 * 0.5 * 0.1, abs=1e-9)  # each drove 0.1 s

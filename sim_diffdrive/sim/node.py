@@ -20,7 +20,6 @@ before the command takes effect, so accuracy does not depend on ``rate_hz``.  Th
 parameters and topics to the modules beside it (listed in the package docstring).
 """
 
-from collections import Counter
 import re
 import time
 
@@ -45,7 +44,6 @@ from sim_diffdrive.sim.world import PlacementError
 from sim_diffdrive.sim.world import World
 from sim_diffdrive.taps import open_taps
 from sim_diffdrive.taps import TAP_PARAMETERS
-from sim_diffdrive.throttle import Throttle
 from std_srvs.srv import Empty
 
 _NS = 1_000_000_000
@@ -53,9 +51,6 @@ _NS = 1_000_000_000
 # type than the robot takes (its commands never arrive) [wall s].
 TYPE_CHECK_S = 2.0
 _POSITION_LIMIT = 1e6
-# A robot stopped for want of cmd_vel is said at most once this often [s, wall], with how
-# many stops went unsaid: a teleop that publishes on a key press only makes a stop per key.
-TIMEOUT_LOG_S = 10.0
 # A robot name: relative ROS name tokens (robot1, team_a/robot1).
 _ROBOT_NAME = re.compile(r'[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)*')
 
@@ -186,7 +181,6 @@ class UnicycleSim(Node):
         self._path_every = max(1, round(p.rate_hz / p.path_rate_hz))
         self._odom_count = 0
         self._types_checked_at = -TYPE_CHECK_S  # (monotonic time) the first step looks
-        self._timeouts_log, self._timeouts_unsaid = Throttle(TIMEOUT_LOG_S), Counter()
         self.create_service(Empty, '~/reset', self._on_reset)
         if self.surroundings:
             self.surroundings.start(self._frames(), self.now_ns(), self.taps)
@@ -245,17 +239,11 @@ class UnicycleSim(Node):
         for kind, i, data in self.world.take_events():
             label = self.robots[i].label
             if kind == 'timeout':
-                if not self._timeouts_log.allows(i):
-                    self._timeouts_unsaid[i] += 1
-                    continue
-                unsaid = self._timeouts_unsaid.pop(i, 0)
                 # When the last command came, on the node's clock: from the outside only the
                 # sender's time is known, and a busy machine can hand it over later.
                 logger.warning(
                     f'{label}No cmd_vel for {self.params.cmd_vel_timeout:g} s: stopping the '
-                    f'robot (the last came at {data // _NS}.{data % _NS:09d} s)' + (
-                        f'; stopped so {unsaid} more time(s) since the last such line (one '
-                        f'line per {TIMEOUT_LOG_S:g} s at most)' if unsaid else ''))
+                    f'robot (the last came at {data // _NS}.{data % _NS:09d} s)')
             else:  # a contact: data is (x, y) in the map, or for a robot (other, drove, x, y)
                 what = 'Hit a wall'
                 if kind == 'robot':
