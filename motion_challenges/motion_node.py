@@ -66,7 +66,7 @@ COMMON_PARAMETERS = (
     Spec('odom_timeout', 1.0,
          'Stop and fail when no odometry came for this long mid-motion (closed loop), or, on '
          'sim time, when simulated time stood still this long with no word from the simulator '
-         '[s, wall time].',
+         "(in lockstep: beyond a step's wall time at its real_time_factor) [s, wall time].",
          low=0.0, high=3600.0, low_open=True, live=True),
     Spec('plot_file', '',
          'Write a PNG of the run here as it ends (a run cut off: as far as it got): the path '

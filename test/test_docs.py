@@ -306,7 +306,9 @@ def test_the_lockstep_example_stopped_with_ctrl_c_stops_the_robot_and_says_goodb
     # the clock lockstep_timeout), and a call that Ctrl-C interrupted raised RCLError, 2 of 4;
     # a KeyboardInterrupt raised inside rclpy came out as RuntimeError, 1 run in 4.
     block = next(block for block in PYTHON if 'take_part(self)' in block[3])
-    sim = procs('sim', 'unicycle_sim', '--ros-args', '-p', 'publish_clock:=true')  # 3 s of it
+    # Real time: 3 s of it; cmd_vel_timeout 0: only the example's last stop stops the robot.
+    sim = procs('sim', 'unicycle_sim', '--ros-args', '-p', 'publish_clock:=true', '-p',
+                'cmd_vel_timeout:=0.0')
     probe = graph.probe(use_sim_time=False)
     example = harness.start_python(block[3])
     try:

@@ -222,7 +222,7 @@ def test_the_tf_chain_runs_from_the_map_to_each_robots_scanner(graph):
     # A base frame set live gets the scanner too: the scans' frame stays in the tree.
     sim = graph.clock_owner
     assert sim.set_parameters([Parameter('base_frame_id', value='base_link')])[0].successful
-    graph.spin_until(lambda: ('r2/base_link', 'r2/base_scan') in edges, timeout=10.0)
+    assert graph.spin_until(lambda: ('r2/base_link', 'r2/base_scan') in edges, timeout=10.0)
     graph.step()
     assert {('r1/odom', 'r1/base_link'), ('r1/base_link', 'r1/base_scan')} <= edges
 

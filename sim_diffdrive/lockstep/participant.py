@@ -67,6 +67,8 @@ class Participant:
         self._roster_steps = {}  # owner -> the time of its latest roster [ns]
         self._latest_ns = 0  # the latest /clock answered at, since time last went back [ns]
         self._check_wall = None  # when to say which topics nothing matches [s, monotonic]
+        # Off for a simulator on another's clock: it publishes for whoever listens.
+        self.name_unmatched = True
         self._last = None
         self._last_clock_messages = 0
         self.left = False
@@ -356,7 +358,7 @@ class Participant:
         joined = self.id in roster.members
         if joined != self.joined:
             self.joined = joined
-            if joined and self._check_wall is None:
+            if joined and self._check_wall is None and self.name_unmatched:
                 self._check_wall = time.monotonic() + UNMATCHED_CHECK_S
             self.node.get_logger().info(
                 f'Taking part in lockstep with {roster.owner}' if joined
@@ -457,7 +459,9 @@ def _settled_ns(node, counter):
 def say_unmatched(node, where=''):
     """Say which topics node publishes that nothing subscribes to, and the other way round."""
     clock = clock_topic(node)
-    own = {'/rosout', '/parameter_events', clock, answer_topic(clock), roster_topic(clock)}
+    # rclpy's and lockstep's own, and tf's: a tf2 listener hears /tf_static only from some.
+    own = {'/rosout', '/parameter_events', clock, answer_topic(clock), roster_topic(clock),
+           '/tf', '/tf_static'}
     unheard = sorted(pub.topic_name for pub in node.publishers
                      if pub.topic_name not in own and not pub.get_subscription_count())
     unfed = sorted(sub.topic_name for sub in node.subscriptions

@@ -87,6 +87,7 @@ class FollowedClock:
         sim.create_timer(sim.step_ns / _NS, self._on_timer)
         if not self._wall:
             self.participant = take_part(sim)
+            self.participant.name_unmatched = False
 
     def now_ns(self):
         if self._wall:

@@ -22,7 +22,11 @@ import pytest
 
 
 def pytest_configure(config):
-    """Leave out a warning users cannot act on: lark (of rosidl) imports sre_parse."""
+    """
+    Leave out a warning users cannot act on: lark (of rosidl) imports sre_parse.
+
+    Through the pytest11 entry point: in every pytest run where the package is installed.
+    """
     config.addinivalue_line('filterwarnings', "ignore:module 'sre_:DeprecationWarning")
 
 
