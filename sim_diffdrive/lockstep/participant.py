@@ -181,12 +181,12 @@ class Participant:
 
     def _answer(self, leaving):
         self._latest_ns = max(self._latest_ns, self.counter.clock_ns or 0)
+        if self.left or self._publisher.get_subscription_count() == 0:
+            return  # gone, or no simulator steps in lockstep (or none yet): spare the hot path
         if self._check_wall is not None and time.monotonic() >= self._check_wall:
             self._check_wall = None  # once: a user's controller waiting on a misnamed topic
             for node in self._nodes:
                 say_unmatched(node)
-        if self.left or self._publisher.get_subscription_count() == 0:
-            return  # gone, or no simulator steps in lockstep (or none yet): spare the hot path
         step_ns, counts = self._totals()
         clock_messages = self.counter.clock_messages
         answer = Answer(self.id, self._name, step_ns, *counts[:2], leaving, *counts[2:])
