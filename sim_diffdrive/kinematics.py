@@ -90,21 +90,39 @@ def arcs(linear, angular, target_linear, target_angular, max_linear_accel, max_a
     Yield the arcs a robot drives in dt seconds while its velocity ramps towards its target.
 
     Each is (seconds, linear, angular held, linear and angular at its end): sub-steps of at most
-    ramp_step holding the velocity at their middle while ramping, then the rest in one arc.
+    ramp_step holding the velocity at their middle while ramping, then the rest in one arc.  A
+    sub-step ends where a ramp does, so that each speed is linear in time within it: holding
+    the middle is then exact for a straight ramp and for a turn in place.
     """
     while dt > 0.0:
         if linear != target_linear or angular != target_angular:
-            step = min(dt, ramp_step)
+            step = min(dt, ramp_step,
+                       _ramp_left(linear, target_linear, max_linear_accel),
+                       _ramp_left(angular, target_angular, max_angular_accel))
             held_linear = limit_command(target_linear, linear, 0.0, max_linear_accel, 0.5 * step)
             held_angular = limit_command(target_angular, angular, 0.0, max_angular_accel,
                                          0.5 * step)
-            linear = limit_command(target_linear, linear, 0.0, max_linear_accel, step)
-            angular = limit_command(target_angular, angular, 0.0, max_angular_accel, step)
+            linear = _ramped(linear, target_linear, max_linear_accel, step)
+            angular = _ramped(angular, target_angular, max_angular_accel, step)
             yield step, held_linear, held_angular, linear, angular
         else:
             step = dt
             yield step, linear, angular, linear, angular
         dt -= step
+
+
+def _ramp_left(speed, target, max_accel):
+    """Return the seconds a ramp from speed to target takes (inf: none, or already there)."""
+    if speed == target or max_accel <= 0.0:
+        return math.inf
+    return abs(target - speed) / max_accel
+
+
+def _ramped(speed, target, max_accel, step):
+    """Return the speed after step seconds of ramping: the target itself once the ramp ends."""
+    if step >= _ramp_left(speed, target, max_accel):
+        return target  # not a rounding short of it, which would leave a ramp of 1e-17 to go
+    return limit_command(target, speed, 0.0, max_accel, step)
 
 
 class UnicycleModel:
