@@ -384,3 +384,39 @@ def test_a_ramp_that_ends_inside_a_sub_step_is_exact(accel, target, kind):
     assert moved == pytest.approx(exact, abs=1e-14)
     assert float(world.linear[0] if straight else world.angular[0]) == target
 
+
+@pytest.mark.parametrize('timeout_ns', [0, 12_000_000])
+@pytest.mark.parametrize('steps', [1, 20])
+def test_two_robots_that_meet_before_a_wall_or_a_timeout_say_only_that_they_met(
+        timeout_ns, steps):
+    # Robot 0 drives at a wall it would touch at 15 ms, robot 1 across its way: they touch at
+    # about 4.6 ms.  In one 20 ms step robot 0 also said 'Hit a wall' (and, with a 12 ms
+    # cmd_vel timeout, both said 'No cmd_vel'), and that it was run into rather than drove in.
+    walls = Walls(GridMap.from_rows(['.' * 30 + '#' + '.' * 69] * 100, resolution=0.05), 0.1)
+    world = World([(1.385, 1.0, 0.0), (1.395, 1.2045, -math.pi / 2)], walls=walls,
+                  timeout_ns=timeout_ns)
+    world.begin(0)
+    world.command(0, 1.0, 0.0, 0)
+    world.command(1, 1.0, 0.0, 0)
+    for k in range(1, steps + 1):
+        world.step_to(20_000_000 * k // steps)
+    events = world.take_events()
+    assert [(e.kind, e.robot, e.data[:2]) for e in events] == [
+        ('robot', 0, (1, True)), ('robot', 1, (0, True))]
+    assert world.x[0] == pytest.approx(1.3895736, abs=1e-6) and world.x[0] < 1.4
+
+
+def test_robots_left_touching_are_not_touched_anew_when_a_third_one_moves():
+    # A touch leaves the discs up to 1e-7 m apart (robot_contact's tolerance): taken for
+    # parted as soon as any robot moved, pushing on said the same contact again.
+    world = World([(1.0, 1.0, 0.0), (1.35, 1.009, 0.0), (4.0, 4.0, 0.0)], walls=open_floor())
+    world.begin(0)
+    world.command(0, 0.99, 1.38, 0)  # an arc into robot 1
+    world.step_to(300_000_000)
+    assert [(e.kind, e.robot) for e in world.take_events()] == [('robot', 0), ('robot', 1)]
+    world.command(0, 0.0, 0.0, 300_000_000)
+    world.command(2, 0.1, 0.0, 300_000_000)  # 3 m away
+    world.step_to(320_000_000)
+    world.command(0, 0.99, 1.38, 320_000_000)  # pushing again: the same contact
+    world.step_to(340_000_000)
+    assert world.take_events() == []

@@ -27,6 +27,7 @@ its time, and after the step the pairs that came within reach are searched along
 import bisect
 from collections import namedtuple
 import math
+from operator import itemgetter
 
 import numpy as np
 from sim_diffdrive.angles import normalize_angle
@@ -37,7 +38,7 @@ from sim_diffdrive.kinematics import limit_command
 from sim_diffdrive.kinematics import normalize_angles
 from sim_diffdrive.world.contact import earliest_touch
 from sim_diffdrive.world.contact import overlaps_robot
-from sim_diffdrive.world.contact import TOUCH
+from sim_diffdrive.world.contact import ROBOT_TOL
 from sim_diffdrive.world.contact import Track
 
 _NS = 1_000_000_000
@@ -58,10 +59,7 @@ Odometry = namedtuple('Odometry', 'stamp_ns x y qz qw linear angular')
 # [ns]), 'wall' (data: (x, y) in the map where it touched) or 'robot' (data: (other, whether
 # this one was driving towards it, x, y)).
 Event = namedtuple('Event', 'kind robot data')
-
-
-def _stamp(held):
-    return held[0]
+_STAMP = itemgetter(0)  # of a held command (stamp_ns, ...): the order they are held in
 
 
 class PlacementError(ValueError):
@@ -163,7 +161,7 @@ class World:
     def hold(self, i, stamp_ns, linear, angular):
         """Keep a command stamped ahead of the clock for robot i; it applies at its stamp."""
         # After those of the same stamp: of two commands for one moment the later counts.
-        bisect.insort(self.early[i], (stamp_ns, linear, angular), key=_stamp)
+        bisect.insort(self.early[i], (stamp_ns, linear, angular), key=_STAMP)
         self.has_early[i] = True
         self.resting = False
 
@@ -312,18 +310,18 @@ class World:
                 stamp_ns, linear, angular = early.pop(0)
                 due.append((stamp_ns, i, linear, angular))
             self.has_early[i] = bool(early)
-        due.sort(key=_stamp)  # stable: one robot's keep their order
+        due.sort(key=_STAMP)  # stable: one robot's keep their order
         return due
 
     def _solid_step(self, now_ns):
         """Advance every robot up to now_ns; stop those that touched each other on the way."""
         known = self.integrated_ns[self.integrated_ns != NOT_YET]
         begin_ns = min(int(known.min()), now_ns) if known.size else now_ns
-        self._drives, self._begin_ns = {}, begin_ns
+        self._drives, self._begin_ns, events_from = {}, begin_ns, len(self.events)
         for i in range(len(self)):
             self._advance(i, now_ns)
         drives, self._drives = self._drives, None
-        self._collide(begin_ns, drives)
+        self._collide(begin_ns, drives, events_from)
 
     def _advance_in_numpy(self, now_ns):
         """step_to for a large fleet on the empty plane: one numpy call for the steady."""
@@ -441,14 +439,14 @@ class World:
 
     # -- robots solid to each other ---------------------------------------------------------
 
-    def _collide(self, begin_ns, drives):
+    def _collide(self, begin_ns, drives, events_from):
         """
         Stop each pair of robots that touched during the step, at the moment they touched.
 
         drives: per robot that moved since begin_ns, (its start pose in the odometry frame and
-        in the map, its arcs (begin [s after begin_ns], seconds, linear, angular)).  The
-        earliest touch of any pair puts both back where they were then, at rest, their arcs
-        cut there; then the next earliest, until none is left.
+        in the map, its arcs (begin [s after begin_ns], seconds, linear, angular)); events_from:
+        the step's first Event.  The earliest touch of any pair puts both back where they were
+        then, at rest, their arcs cut there; then the next earliest, until none is left.
         """
         if not drives:
             return
@@ -464,13 +462,13 @@ class World:
                 break
             at, i, j = first
             touched.add((i, j))
+            speed = {}  # of each at the touch: 0 for one that stood (or was stopped before)
             for k in (i, j):
-                if k in drives:
-                    self._replay(k, drives.pop(k), at)
+                speed[k] = self._replay(k, drives.pop(k), at, events_from) if k in drives else 0.0
                 tracks[k] = tracks[k].cut(at)
             mx, my, myaw = self.map_poses()
-            into = [float(self.linear[k]) * (math.cos(myaw[k]) * (mx[m] - mx[k])
-                                             + math.sin(myaw[k]) * (my[m] - my[k])) > 0.0
+            into = [speed[k] * (math.cos(myaw[k]) * (mx[m] - mx[k])
+                                + math.sin(myaw[k]) * (my[m] - my[k])) > 0.0
                     for k, m in ((i, j), (j, i))]  # was it driving towards the other?
             self._stop(i, 'robot', (j, into[0], float(mx[i]), float(my[i])))
             self._stop(j, 'robot', (i, into[1], float(mx[j]), float(my[j])))
@@ -487,14 +485,15 @@ class World:
             for i in standing:
                 gaps = np.hypot(mx - mx[i], my - my[i])
                 gaps[i] = np.inf
-                if gaps.min() > 2.0 * self.radius + TOUCH:
+                if gaps.min() > 2.0 * self.radius + ROBOT_TOL:  # robot_contact stops within
                     self.touching[i] = None
 
-    def _replay(self, i, drive, at):
-        """Put robot i back where its drive had brought it at [s into the step]."""
-        (x, y, yaw), _, pieces = drive
-        for begin, seconds, linear, angular in pieces:
-            if begin >= at:
-                break
-            x, y, yaw = integrate(x, y, yaw, linear, angular, min(seconds, at - begin))
+    def _replay(self, i, drive, at, events_from):
+        """Put robot i back where its drive had it at [s into the step]; return its speed then."""
+        start, _, pieces = drive
+        x, y, yaw, speed, _ = Track(*start, pieces).at(at)
         self.x[i], self.y[i], self.yaw[i] = x, y, yaw
+        if pieces and at < pieces[-1][0] + pieces[-1][1]:
+            # What ended its drive later (a wall, its cmd_vel timeout) never happened.
+            self.events[events_from:] = [e for e in self.events[events_from:] if e.robot != i]
+        return speed
