@@ -16,7 +16,8 @@
 The one ``main()`` shape every executable of this package uses.
 
 rclpy's default SIGINT handler shuts the context down before Python sees KeyboardInterrupt,
-and a last zero Twist could no longer be published.  So SIGINT and SIGTERM are handled here:
+and a last zero Twist could no longer be published.  So SIGINT, SIGTERM and SIGHUP (the
+terminal closed; not under nohup, which ignores it) are handled here:
 KeyboardInterrupt while Python code waits (typed input), a flag checked between spins once the
 executor runs, so neither a callback nor the final stop (``shutdown_hook``) is cut off.
 """
@@ -40,6 +41,9 @@ EXIT_OK = 0
 EXIT_FAILED = 1
 EXIT_USAGE = 2
 
+# What the run says when a signal ends it (any other: SIGINT).
+_STOPPED_BY = {signal.SIGTERM: 'Stopped by SIGTERM',
+               signal.SIGHUP: 'Stopped by SIGHUP (its terminal closed)'}
 # Bounds how long a signal waits for Python's handler while the executor sleeps in rcl.
 _SPIN_TIMEOUT = 0.1
 # How long destroying the nodes and shutting rclpy down may take [s] before the process ends
@@ -123,6 +127,8 @@ def run(make_node, args=None, name='motion_challenges'):
     interrupts = _Interrupts()
     signal.signal(signal.SIGINT, interrupts)
     signal.signal(signal.SIGTERM, interrupts)
+    if signal.getsignal(signal.SIGHUP) is not signal.SIG_IGN:  # nohup: the terminal may go
+        signal.signal(signal.SIGHUP, interrupts)
     # `kill -USR1 <pid>` writes every thread's Python stack to stderr and the run goes on: where
     # a process that does not exit is stuck, even inside rclpy or DDS (harness.Process.kill).
     faulthandler.register(signal.SIGUSR1)
@@ -150,8 +156,7 @@ def run(make_node, args=None, name='motion_challenges'):
         exit_code = EXIT_USAGE
     except KeyboardInterrupt:
         # SIGTERM is how a launch file, systemd or `kill` stops a process, not a user's Ctrl-C.
-        logger.info('Stopped by SIGTERM' if interrupts.signum == signal.SIGTERM
-                    else 'Interrupted by the user')
+        logger.info(_STOPPED_BY.get(interrupts.signum, 'Interrupted by the user'))
         # A motion that had already failed before the interrupt still fails the run.
         exit_code = worst_exit_code([n for n in nodes if getattr(n, 'done', False)])
     except ExternalShutdownException:
@@ -185,8 +190,8 @@ def run(make_node, args=None, name='motion_challenges'):
             # The run is over: a signal from now on changes nothing.  Left to Python, which
             # puts the default action back as it finalizes, a second Ctrl-C then killed the
             # process after its cleanup, exit 130 where the run's code was due.
-            signal.signal(signal.SIGINT, signal.SIG_IGN)
-            signal.signal(signal.SIGTERM, signal.SIG_IGN)
+            for signum in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+                signal.signal(signum, signal.SIG_IGN)
     return exit_code
 
 

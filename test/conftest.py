@@ -115,7 +115,8 @@ def procs(tmp_path):
 @pytest.fixture
 def main_process():
     """Give run() the process: restore the signal handlers and the default context after it."""
-    handlers = {signum: signal.getsignal(signum) for signum in (signal.SIGINT, signal.SIGTERM)}
+    handlers = {signum: signal.getsignal(signum)
+                for signum in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)}
     try:
         yield
     finally:

@@ -55,8 +55,7 @@ _PREFIX = f'/interrupts_{os.getpid()}'
 
 def ros_args(namespace, *params, sim_time=False):
     """Return --ros-args putting a node in namespace, with its /clock there too."""
-    return ros_params(*params, namespace=namespace, clock=f'{namespace}/clock',
-                      sim_time=sim_time)
+    return ros_params(*params, namespace=namespace, clock=f'{namespace}/clock', sim_time=sim_time)
 
 
 def watch(graph, namespace, sim_time=False, **kwargs):
@@ -125,7 +124,8 @@ def check_clean_interrupt(proc, signum, problems, label):
         problems.append(f'{label}: exit code {proc.poll()}, expected 0\n{proc.describe()}')
     if 'Traceback' in output or 'Exception in' in output:
         problems.append(f'{label}: not a clean exit\n{proc.describe()}')
-    said = 'Stopped by SIGTERM' if signum == signal.SIGTERM else 'Interrupted by the user'
+    said = ('Interrupted by the user' if signum == signal.SIGINT
+            else f'Stopped by {signal.Signals(signum).name}')
     if said not in output:
         problems.append(f'{label}: no "{said}"\n{proc.describe()}')
     if (late := (proc.running_at or 0.0) - proc.signalled_at) > 3.0:  # seen running: no lag
@@ -378,11 +378,11 @@ def test_interrupt_while_waiting_for_the_robot_or_for_typed_input(graph, procs):
 
 def test_interrupt_mid_segment_and_during_a_pause(graph, procs):
     robots = [
-        # Each motion mid-segment, each signal on open and closed loops, each pause.
+        # Each motion mid-segment, each signal (SIGHUP too) on open and closed loops, each pause.
         Robot('rotate_int', Interruption('rotate_robot', 'segment', signal.SIGINT)),
         Robot('rotate_odom', Interruption('rotate_robot mode:=odom', 'segment', signal.SIGTERM)),
         Robot('circle', Interruption('circle_back_and_forth', 'segment', signal.SIGINT)),
-        Robot('timed', Interruption('timed_out_and_back', 'segment', signal.SIGTERM)),
+        Robot('timed', Interruption('timed_out_and_back', 'segment', signal.SIGHUP)),
         Robot('timed_pause', Interruption('timed_out_and_back', 'pause', signal.SIGINT)),
         Robot('odom', Interruption('odom_out_and_back', 'segment', signal.SIGINT)),
         Robot('odom_pause', Interruption('odom_out_and_back', 'pause', signal.SIGTERM)),

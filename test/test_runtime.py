@@ -205,6 +205,12 @@ class Terminating(Interrupting):
     signum = signal.SIGTERM
 
 
+class HangingUp(Interrupting):
+    """Not done; a timer sends this process SIGHUP, as closing its terminal does."""
+
+    signum = signal.SIGHUP
+
+
 def test_ctrl_c_runs_every_hook_and_keeps_a_failure_already_there(main_process):
     code, nodes = run_nodes({'exit_code': EXIT_FAILED}, extra=[Interrupting])
     assert code == EXIT_FAILED
@@ -212,7 +218,8 @@ def test_ctrl_c_runs_every_hook_and_keeps_a_failure_already_there(main_process):
 
 
 @pytest.mark.parametrize('signaller,said', [
-    (Interrupting, 'Interrupted by the user'), (Terminating, 'Stopped by SIGTERM')])
+    (Interrupting, 'Interrupted by the user'), (Terminating, 'Stopped by SIGTERM'),
+    (HangingUp, 'Stopped by SIGHUP (its terminal closed)')])
 def test_ctrl_c_or_sigterm_with_nothing_failed_exits_0_and_says_which(
         main_process, capfd, signaller, said):
     code, nodes = run_nodes({}, extra=[signaller])
@@ -223,6 +230,31 @@ def test_ctrl_c_or_sigterm_with_nothing_failed_exits_0_and_says_which(
     # A second signal after the run changes nothing: Python would put the default action back
     # as it finalizes, and a second Ctrl-C then killed the process (exit 130, not 0).
     assert signal.getsignal(signal.SIGINT) == signal.getsignal(signal.SIGTERM) == signal.SIG_IGN
+
+
+class HungUpThenDone(Finished):
+    """Done once a timer has sent this process SIGHUP three times."""
+
+    def __init__(self):
+        super().__init__(name='hung_up', done=False)
+        self.sent = 0
+        self.create_timer(0.01, self._hang_up)
+
+    def _hang_up(self):
+        if self.sent == 3:
+            self.done = True
+        else:
+            self.sent += 1
+            signal.raise_signal(signal.SIGHUP)
+
+
+def test_under_nohup_sighup_is_left_ignored(main_process, capfd):
+    # nohup starts a process with SIGHUP ignored, to outlive its terminal: the run keeps that.
+    signal.signal(signal.SIGHUP, signal.SIG_IGN)
+    code, nodes = run_nodes({}, extra=[HungUpThenDone])
+    assert code == EXIT_OK and nodes[-1].sent == 3
+    assert all(node.calls == ['shutdown_hook', 'destroy_node'] for node in nodes)
+    assert 'SIGHUP' not in capfd.readouterr().err
 
 
 class SignalledWhileEnding(Finished):
