@@ -44,12 +44,12 @@ setup(
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
-            'unicycle_sim = sim_diffdrive.sim.node:main',
-            'rotate_robot = motion_challenges.rotate_robot:main',
-            'circle_back_and_forth = motion_challenges.circle_back_and_forth:main',
-            'timed_out_and_back = motion_challenges.timed_out_and_back:main',
-            'odom_out_and_back = motion_challenges.odom_out_and_back:main',
-            'motion_fleet = motion_challenges.motion_fleet:main',
+            'unicycle_sim = sim_diffdrive.console:unicycle_sim',
+            'rotate_robot = motion_challenges.console:rotate_robot',
+            'circle_back_and_forth = motion_challenges.console:circle_back_and_forth',
+            'timed_out_and_back = motion_challenges.console:timed_out_and_back',
+            'odom_out_and_back = motion_challenges.console:odom_out_and_back',
+            'motion_fleet = motion_challenges.console:motion_fleet',
         ],
         # The sim_graph fixture, for testing controllers against the simulator.
         'pytest11': ['sim_graph = sim_diffdrive.testing.pytest_plugin'],

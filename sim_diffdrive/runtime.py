@@ -33,6 +33,8 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.experimental import EventsExecutor
 from rclpy.impl.implementation_singleton import rclpy_implementation
 from rclpy.signals import SignalHandlerOptions
+from sim_diffdrive.console import early_signal
+from sim_diffdrive.console import SIGNALS
 from sim_diffdrive.dds_profile import use_package_profile
 from sim_diffdrive.dds_teardown import ParticipantHold
 from sim_diffdrive.parameters import ParameterError
@@ -125,10 +127,10 @@ def run(make_node, args=None, name='motion_challenges'):
         logger.error(f'Bad command-line arguments: {error}')
         return EXIT_USAGE
     interrupts = _Interrupts()
-    signal.signal(signal.SIGINT, interrupts)
-    signal.signal(signal.SIGTERM, interrupts)
-    if signal.getsignal(signal.SIGHUP) is not signal.SIG_IGN:  # nohup: the terminal may go
-        signal.signal(signal.SIGHUP, interrupts)
+    for signum in SIGNALS:
+        if signum != signal.SIGHUP or signal.getsignal(signum) is not signal.SIG_IGN:
+            signal.signal(signum, interrupts)  # SIGHUP stays ignored under nohup
+    early = early_signal()  # one that came after a console script's imports, before this
     # `kill -USR1 <pid>` writes every thread's Python stack to stderr and the run goes on: where
     # a process that does not exit is stuck, even inside rclpy or DDS (harness.Process.kill).
     faulthandler.register(signal.SIGUSR1)
@@ -139,6 +141,8 @@ def run(make_node, args=None, name='motion_challenges'):
     try:
         # The DDS participant outlives every node, even one refused while it is built, and goes
         # last, the safe way (sim_diffdrive/dds_teardown.py).
+        if early is not None:
+            interrupts(early, None)
         hold = ParticipantHold(rclpy.get_default_context())
         built = make_node()
         nodes = list(built) if isinstance(built, (list, tuple)) else [built]
@@ -190,7 +194,7 @@ def run(make_node, args=None, name='motion_challenges'):
             # The run is over: a signal from now on changes nothing.  Left to Python, which
             # puts the default action back as it finalizes, a second Ctrl-C then killed the
             # process after its cleanup, exit 130 where the run's code was due.
-            for signum in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+            for signum in SIGNALS:
                 signal.signal(signum, signal.SIG_IGN)
     return exit_code
 

@@ -93,15 +93,14 @@ def test_package_is_in_the_ament_index(indexed):
         assert installed.read() == source.read()
 
 
-# What each installed console script calls: the main() that test_faults.py, test_sim_*.py and
-# test_motion_fleet.py call in the pytest process (run_main) stands for its executable.
+# What each installed console script calls: launch() (sim_diffdrive/console.py: signals taken
+# first) of the module whose main() test_faults.py, test_sim_*.py and test_motion_fleet.py call
+# in the pytest process (run_main): it stands for its executable.
 ENTRY_POINTS = {
-    'unicycle_sim': 'sim_diffdrive.sim.node:main',
-    'rotate_robot': 'motion_challenges.rotate_robot:main',
-    'circle_back_and_forth': 'motion_challenges.circle_back_and_forth:main',
-    'timed_out_and_back': 'motion_challenges.timed_out_and_back:main',
-    'odom_out_and_back': 'motion_challenges.odom_out_and_back:main',
-    'motion_fleet': 'motion_challenges.motion_fleet:main',
+    'unicycle_sim': 'sim_diffdrive.console:unicycle_sim',
+    **{name: f'motion_challenges.console:{name}' for name in (
+        'rotate_robot', 'circle_back_and_forth', 'timed_out_and_back', 'odom_out_and_back',
+        'motion_fleet')},
 }
 
 

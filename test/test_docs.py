@@ -107,7 +107,7 @@ def section(text, title):
 
 def console_scripts():
     text = (ROOT / 'setup.py').read_text()
-    return set(re.findall(r"'(\w+) = [\w.]+:main'", text))
+    return set(re.findall(r"'(\w+) = [\w.]+:\w+'", text))
 
 
 def launch_file():

@@ -26,6 +26,7 @@ launch description is built too.
 import ast
 import importlib.util
 from pathlib import Path
+import re
 
 import pytest
 from sim_diffdrive.taps.rviz_config import FLEET_FRAME
@@ -55,8 +56,7 @@ def keyword(call, name):
 def executables():
     """Return the console_scripts of setup.py, read from its source (no setuptools run)."""
     text = (ROOT / 'setup.py').read_text()
-    return {line.split('=')[0].strip().strip("'") for line in text.splitlines()
-            if ' = ' in line and ':main' in line}
+    return set(re.findall(r"'(\w+) = [\w.]+:\w+'", text))
 
 
 def test_the_launch_file_declares_its_arguments_and_a_generate_function():

@@ -20,12 +20,16 @@ its own SIGINT/SIGTERM handlers; each test puts the handlers back and shuts the 
 """
 
 import gc
+import importlib
 import signal
+import time
 
 from geometry_msgs.msg import Twist
+from motion_challenges import console
 import pytest
 import rclpy
 from rclpy.node import Node
+from sim_diffdrive import console as sim_diffdrive_console
 from sim_diffdrive.harness import kill_all
 from sim_diffdrive.harness import start_python
 from sim_diffdrive.runtime import destroyed_if_refused
@@ -33,6 +37,9 @@ from sim_diffdrive.runtime import EXIT_FAILED
 from sim_diffdrive.runtime import EXIT_OK
 from sim_diffdrive.runtime import EXIT_USAGE
 from sim_diffdrive.runtime import run
+
+MOTIONS = ('rotate_robot', 'circle_back_and_forth', 'timed_out_and_back', 'odom_out_and_back',
+           'motion_fleet')
 
 
 class Finished(Node):
@@ -346,3 +353,53 @@ def test_a_cleanup_that_never_ends_ends_the_process_with_its_stack_after_the_fin
     assert code == EXIT_FAILED, output
     assert 'final stop sent' in output
     assert 'Timeout (0:00:00.500000)!' in output and 'in destroy_node' in output, output
+
+
+# A console script's start, its imports held up (as a busy machine holds rclpy's): the module
+# says when it is being imported, then takes 1 s.
+SLOW_START = """
+import pathlib, sys, tempfile
+folder = pathlib.Path(tempfile.mkdtemp())
+(folder / 'slow_imports.py').write_text(
+    'import time\\nprint("importing", flush=True)\\ntime.sleep(1)\\ndef main(): return 1\\n')
+sys.path.insert(0, str(folder))
+from sim_diffdrive.console import launch
+sys.exit(launch('slow_imports', 'slow_start'))
+"""
+
+
+@pytest.mark.parametrize('signum,said', [
+    (signal.SIGINT, 'Interrupted by the user'), (signal.SIGTERM, 'Stopped by SIGTERM'),
+    (signal.SIGHUP, 'Stopped by SIGHUP')])
+def test_a_signal_while_an_executable_imports_ends_it_quietly(signum, said):
+    # Before sim_diffdrive/console.py, a Ctrl-C there was a traceback, SIGTERM silence.
+    process = start_python(SLOW_START)
+    try:
+        deadline = time.monotonic() + 20.0
+        while 'importing' not in process.output() and time.monotonic() < deadline:
+            time.sleep(0.01)
+        process.popen.send_signal(signum)
+        code = process.wait(10.0)
+    finally:
+        kill_all([process], grace=0.0)
+    output = process.output()
+    assert code == EXIT_OK, output
+    assert f'[slow_start]: {said} as it started' in output and 'Traceback' not in output, output
+
+
+def test_a_signal_after_the_imports_is_the_runs_first_interrupt(main_process, capfd):
+    # Noted by the console script once its imports were done, before run() took over.
+    sim_diffdrive_console._note(signal.SIGTERM, None)
+    code, nodes = run_nodes({'exit_code': EXIT_OK, 'done': False})
+    assert code == EXIT_OK and nodes == []  # ended before a node was built
+    assert 'Stopped by SIGTERM' in capfd.readouterr().err
+    assert sim_diffdrive_console.early_signal() is None  # taken
+
+
+def test_each_console_script_launches_its_executables_main(monkeypatch):
+    launched = []
+    monkeypatch.setattr(console, 'launch', lambda module, name: launched.append((module, name)))
+    for name in MOTIONS:
+        getattr(console, name)()
+    assert launched == [(f'motion_challenges.{name}', name) for name in MOTIONS]
+    assert all(callable(importlib.import_module(module).main) for module, _ in launched)
