@@ -74,7 +74,9 @@ def rotate_args(robot_name, *params):
 
 def finish(graph, process, timeout=30.0):
     """Wait (spinning the probe) for process to exit; return (exit code, output)."""
-    assert graph.spin_until(lambda: process.poll() is not None, timeout), process.describe()
+    if not graph.spin_until(lambda: process.poll() is not None, timeout):
+        process.kill(grace=1.0)  # with its stacks in its output: where it was stuck
+        raise AssertionError(f'did not exit within {timeout:g} s:\n{process.describe()}')
     return process.returncode, process.output()
 
 
