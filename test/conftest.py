@@ -52,7 +52,7 @@ os.environ.setdefault('OPENBLAS_NUM_THREADS', '1')
 
 def pytest_configure(config):
     """
-    Keep the fault dump of a crash on this process's own stderr (a pytest worker's too).
+    Keep the fault dump of a crash on this process's own stderr (a pytest worker's too); SIGHUP.
 
     rclpy's EventsExecutor() calls faulthandler.enable(), which points the dump at sys.stderr:
     within a test, pytest's capture, which a crashed worker takes with it.  Four worker deaths
@@ -66,6 +66,10 @@ def pytest_configure(config):
     def enable_on_stderr(file=None, all_threads=True):
         enable(file=stderr if file is None else file, all_threads=all_threads)
     faulthandler.enable = enable_on_stderr
+    # SIGHUP as a terminal gives it, for the tests of a closed terminal and the processes they
+    # start: a suite run under nohup (a loop of runs, a CI job) inherits it ignored, and a run
+    # then keeps ignoring it (as it should under nohup) and never ends.
+    signal.signal(signal.SIGHUP, signal.SIG_DFL)
 
 
 @pytest.fixture
