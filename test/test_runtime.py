@@ -197,13 +197,21 @@ def test_a_node_without_done_does_not_hold_the_run_once_the_others_are_done(main
 
 
 class Interrupting(Finished):
-    """Not done; a timer sends this process SIGINT, as Ctrl-C would, once spinning."""
+    """
+    Not done; a timer sends this process SIGINT, as Ctrl-C would, once spinning.
+
+    A run that lets the signal go by ends after 10 s, failed, rather than spin for ever.
+    """
 
     signum = signal.SIGINT
 
     def __init__(self):
         super().__init__(name='interrupting', done=False)
         self.create_timer(0.01, lambda: signal.raise_signal(self.signum))
+        self.create_timer(10.0, self._ignored)
+
+    def _ignored(self):
+        self.exit_code, self.done = EXIT_FAILED, True
 
 
 class Terminating(Interrupting):
