@@ -420,3 +420,17 @@ def test_robots_left_touching_are_not_touched_anew_when_a_third_one_moves():
     world.command(0, 0.99, 1.38, 320_000_000)  # pushing again: the same contact
     world.step_to(340_000_000)
     assert world.take_events() == []
+
+
+@pytest.mark.parametrize('step_ns', [1_000_000, 20_000_000])
+def test_a_timeout_before_a_touch_is_kept_while_the_robot_slows_down(step_ns):
+    # Under an acceleration limit a robot timed out at 0.325 s still rolls on, and touches
+    # another at 0.331 s: the timeout happened, in 1 ms steps as in 20 ms ones.
+    world = World([(1.0, 1.0, 0.0), (1.48, 1.0, 0.0)], walls=open_floor(),
+                  timeout_ns=325_000_000, limits={'max_linear_accel': 10.0})
+    world.begin(0)
+    world.command(0, 1.0, 0.0, 0)
+    for k in range(1, 400_000_000 // step_ns + 1):
+        world.step_to(k * step_ns)
+    assert [(e.kind, e.robot) for e in world.take_events()] == [
+        ('timeout', 0), ('robot', 0), ('robot', 1)]

@@ -485,7 +485,7 @@ class World:
             for i in standing:
                 gaps = np.hypot(mx - mx[i], my - my[i])
                 gaps[i] = np.inf
-                if gaps.min() > 2.0 * self.radius + ROBOT_TOL:  # robot_contact stops within
+                if gaps.min() > 2.0 * self.radius + 2.0 * ROBOT_TOL:  # robot_contact's, rounded
                     self.touching[i] = None
 
     def _replay(self, i, drive, at, events_from):
@@ -493,7 +493,7 @@ class World:
         start, _, pieces = drive
         x, y, yaw, speed, _ = Track(*start, pieces).at(at)
         self.x[i], self.y[i], self.yaw[i] = x, y, yaw
-        if pieces and at < pieces[-1][0] + pieces[-1][1]:
-            # What ended its drive later (a wall, its cmd_vel timeout) never happened.
-            self.events[events_from:] = [e for e in self.events[events_from:] if e.robot != i]
+        if pieces and at < pieces[-1][0] + pieces[-1][1]:  # a wall after the touch, a timeout?
+            self.events[events_from:] = [e for e in self.events[events_from:] if e.robot != i or (
+                e.kind == 'timeout' and e.data + self.timeout_ns - self._begin_ns <= at * _NS)]
         return speed
