@@ -31,7 +31,8 @@ import sys
 import time
 
 SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
-_SAID = {signal.SIGTERM: 'Stopped by SIGTERM', signal.SIGHUP: 'Stopped by SIGHUP'}
+_SAID = {signal.SIGTERM: 'Stopped by SIGTERM',
+         signal.SIGHUP: 'Stopped by SIGHUP (its terminal closed)'}
 _received = []  # the signals noted since launch(), until runtime.run takes them (early_signal)
 
 
@@ -57,8 +58,10 @@ def launch(module, name):
     for signum in SIGNALS:
         signal.signal(signum, signal.SIG_IGN)
     said = _SAID.get(_received[0], 'Interrupted by the user')
-    # As rclpy logs (its logging is not set up yet).
-    print(f'[INFO] [{time.time():.9f}] [{name}]: {said} as it started', file=sys.stderr)
+    try:  # as rclpy logs (its logging is not set up yet); to a closed terminal: EIO
+        print(f'[INFO] [{time.time():.9f}] [{name}]: {said} as it started', file=sys.stderr)
+    except OSError:
+        pass
     return 0
 
 

@@ -127,22 +127,22 @@ def run(make_node, args=None, name='motion_challenges'):
         logger.error(f'Bad command-line arguments: {error}')
         return EXIT_USAGE
     interrupts = _Interrupts()
-    for signum in SIGNALS:
-        if signum != signal.SIGHUP or signal.getsignal(signum) is not signal.SIG_IGN:
-            signal.signal(signum, interrupts)  # SIGHUP stays ignored under nohup
-    early = early_signal()  # one that came after a console script's imports, before this
-    # `kill -USR1 <pid>` writes every thread's Python stack to stderr and the run goes on: where
-    # a process that does not exit is stuck, even inside rclpy or DDS (harness.Process.kill).
-    faulthandler.register(signal.SIGUSR1)
     nodes = []
     executor = None
     hold = None
     exit_code = EXIT_FAILED
-    try:
-        # The DDS participant outlives every node, even one refused while it is built, and goes
-        # last, the safe way (sim_diffdrive/dds_teardown.py).
+    try:  # from the handlers on: a signal as they are set is an interrupt of the run too
+        for signum in SIGNALS:
+            if signum != signal.SIGHUP or signal.getsignal(signum) is not signal.SIG_IGN:
+                signal.signal(signum, interrupts)  # SIGHUP stays ignored under nohup
+        early = early_signal()  # one that came after a console script's imports, before this
         if early is not None:
             interrupts(early, None)
+        # `kill -USR1 <pid>` writes every thread's Python stack to stderr and the run goes on:
+        # where a process that does not exit is stuck, even in rclpy or DDS (Process.kill).
+        faulthandler.register(signal.SIGUSR1)
+        # The DDS participant outlives every node, even one refused while it is built, and goes
+        # last, the safe way (sim_diffdrive/dds_teardown.py).
         hold = ParticipantHold(rclpy.get_default_context())
         built = make_node()
         nodes = list(built) if isinstance(built, (list, tuple)) else [built]

@@ -52,7 +52,7 @@ os.environ.setdefault('OPENBLAS_NUM_THREADS', '1')
 
 def pytest_configure(config):
     """
-    Keep the fault dump of a crash on this process's own stderr (a pytest worker's too); SIGHUP.
+    Keep the fault dump of a crash on this process's own stderr (a pytest worker's too).
 
     rclpy's EventsExecutor() calls faulthandler.enable(), which points the dump at sys.stderr:
     within a test, pytest's capture, which a crashed worker takes with it.  Four worker deaths
@@ -66,10 +66,6 @@ def pytest_configure(config):
     def enable_on_stderr(file=None, all_threads=True):
         enable(file=stderr if file is None else file, all_threads=all_threads)
     faulthandler.enable = enable_on_stderr
-    # SIGHUP as a terminal gives it, for the tests of a closed terminal and the processes they
-    # start: a suite run under nohup (a loop of runs, a CI job) inherits it ignored, and a run
-    # then keeps ignoring it (as it should under nohup) and never ends.
-    signal.signal(signal.SIGHUP, signal.SIG_DFL)
 
 
 @pytest.fixture
@@ -117,7 +113,22 @@ def procs(tmp_path):
 
 
 @pytest.fixture
-def main_process():
+def terminal_sighup():
+    """
+    Give this test, and the processes it starts, SIGHUP's default action, as a terminal does.
+
+    A suite run under nohup (a loop of runs, a CI job) inherits it ignored, and a run rightly
+    keeps ignoring it: a test of a closed terminal would then wait for an end that never comes.
+    """
+    handler = signal.signal(signal.SIGHUP, signal.SIG_DFL)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGHUP, handler)
+
+
+@pytest.fixture
+def main_process(terminal_sighup):
     """Give run() the process: restore the signal handlers and the default context after it."""
     handlers = {signum: signal.getsignal(signum)
                 for signum in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)}

@@ -376,12 +376,12 @@ def test_interrupt_while_waiting_for_the_robot_or_for_typed_input(graph, procs):
                    for o in robot.watcher.odoms)
 
 
-def test_interrupt_mid_segment_and_during_a_pause(graph, procs):
+def test_interrupt_mid_segment_and_during_a_pause(graph, procs, terminal_sighup):
     robots = [
-        # Each motion mid-segment, each signal (SIGHUP too) on open and closed loops, each pause.
+        # Each motion mid-segment, SIGINT and SIGTERM on open and closed loops, SIGHUP too.
         Robot('rotate_int', Interruption('rotate_robot', 'segment', signal.SIGINT)),
         Robot('rotate_odom', Interruption('rotate_robot mode:=odom', 'segment', signal.SIGTERM)),
-        Robot('circle', Interruption('circle_back_and_forth', 'segment', signal.SIGINT)),
+        Robot('circle', Interruption('circle_back_and_forth', 'segment', signal.SIGTERM)),
         Robot('timed', Interruption('timed_out_and_back', 'segment', signal.SIGHUP)),
         Robot('timed_pause', Interruption('timed_out_and_back', 'pause', signal.SIGINT)),
         Robot('odom', Interruption('odom_out_and_back', 'segment', signal.SIGINT)),

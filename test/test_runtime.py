@@ -196,22 +196,25 @@ def test_a_node_without_done_does_not_hold_the_run_once_the_others_are_done(main
     assert all(node.calls == ['shutdown_hook', 'destroy_node'] for node in nodes[:-1])
 
 
-class Interrupting(Finished):
-    """
-    Not done; a timer sends this process SIGINT, as Ctrl-C would, once spinning.
+class Lingering(Finished):
+    """Not done; a run that nothing ends ends after 10 s, failed, rather than spin for ever."""
 
-    A run that lets the signal go by ends after 10 s, failed, rather than spin for ever.
-    """
+    def __init__(self, name='lingering'):
+        super().__init__(name=name, done=False)
+        self.create_timer(10.0, self._given_up)
+
+    def _given_up(self):
+        self.exit_code, self.done = EXIT_FAILED, True
+
+
+class Interrupting(Lingering):
+    """Not done; a timer sends this process SIGINT, as Ctrl-C would, once spinning."""
 
     signum = signal.SIGINT
 
     def __init__(self):
-        super().__init__(name='interrupting', done=False)
+        super().__init__(name='interrupting')
         self.create_timer(0.01, lambda: signal.raise_signal(self.signum))
-        self.create_timer(10.0, self._ignored)
-
-    def _ignored(self):
-        self.exit_code, self.done = EXIT_FAILED, True
 
 
 class Terminating(Interrupting):
@@ -364,12 +367,15 @@ def test_a_cleanup_that_never_ends_ends_the_process_with_its_stack_after_the_fin
 
 
 # A console script's start, its imports held up (as a busy machine holds rclpy's): the module
-# says when it is being imported, then takes 1 s.
+# says when it is being imported, and its import lasts until a signal has come (30 s at most).
 SLOW_START = """
 import pathlib, sys, tempfile
 folder = pathlib.Path(tempfile.mkdtemp())
 (folder / 'slow_imports.py').write_text(
-    'import time\\nprint("importing", flush=True)\\ntime.sleep(1)\\ndef main(): return 1\\n')
+    'import time\\nfrom sim_diffdrive import console\\nprint("importing", flush=True)\\n'
+    'end = time.monotonic() + 30\\n'
+    'while not console._received and time.monotonic() < end: time.sleep(0.01)\\n'
+    'def main(): return 1\\n')
 sys.path.insert(0, str(folder))
 from sim_diffdrive.console import launch
 sys.exit(launch('slow_imports', 'slow_start'))
@@ -378,8 +384,8 @@ sys.exit(launch('slow_imports', 'slow_start'))
 
 @pytest.mark.parametrize('signum,said', [
     (signal.SIGINT, 'Interrupted by the user'), (signal.SIGTERM, 'Stopped by SIGTERM'),
-    (signal.SIGHUP, 'Stopped by SIGHUP')])
-def test_a_signal_while_an_executable_imports_ends_it_quietly(signum, said):
+    (signal.SIGHUP, 'Stopped by SIGHUP (its terminal closed)')])
+def test_a_signal_while_an_executable_imports_ends_it_quietly(signum, said, terminal_sighup):
     # Before sim_diffdrive/console.py, a Ctrl-C there was a traceback, SIGTERM silence.
     process = start_python(SLOW_START)
     try:
@@ -398,7 +404,7 @@ def test_a_signal_while_an_executable_imports_ends_it_quietly(signum, said):
 def test_a_signal_after_the_imports_is_the_runs_first_interrupt(main_process, capfd):
     # Noted by the console script once its imports were done, before run() took over.
     sim_diffdrive_console._note(signal.SIGTERM, None)
-    code, nodes = run_nodes({'exit_code': EXIT_OK, 'done': False})
+    code, nodes = run_nodes(extra=[Lingering])
     assert code == EXIT_OK and nodes == []  # ended before a node was built
     assert 'Stopped by SIGTERM' in capfd.readouterr().err
     assert sim_diffdrive_console.early_signal() is None  # taken
