@@ -434,3 +434,16 @@ def test_a_timeout_before_a_touch_is_kept_while_the_robot_slows_down(step_ns):
         world.step_to(k * step_ns)
     assert [(e.kind, e.robot) for e in world.take_events()] == [
         ('timeout', 0), ('robot', 0), ('robot', 1)]
+
+
+def test_a_robot_is_not_kept_off_the_place_of_one_refused_for_a_wall():
+    # b's new place is in a wall, so b stays at (4, 4): a, next to where b would have been,
+    # was refused too, 'on b at (2.000, 1.000)', a place b never took.
+    rows = ['.' * 100] * 100
+    rows[79] = '.' * 40 + '#' + '.' * 59  # one solid cell: [2.00, 2.05) x [1.00, 1.05)
+    world = World([(0.5, 0.5, 0.0), (4.0, 4.0, 0.0)], names=['a', 'b'],
+                  walls=Walls(GridMap.from_rows(rows, resolution=0.05), 0.1))
+    refused = world.reset_all([(1.85, 1.0, 0.0), (2.0, 1.0, 0.0)])
+    assert {i: str(error) for i, error in refused.items()} == {
+        1: 'b at (2.000, 1.000) in the map would be inside a wall (robot_radius 0.1 m)'}
+    assert [state(world, i)[:2] for i in (0, 1)] == [(1.85, 1.0), (4.0, 4.0)]

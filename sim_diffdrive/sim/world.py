@@ -200,9 +200,8 @@ class World:
         Put every robot back as at the start, all at once: at rest at (x, y, yaw), map -> odom.
 
         The poses are in each odometry frame, which lies on the map again (map -> odom the
-        identity).  Each is checked against the walls and where the others go: one whose pose
-        is in a wall, on another's new pose or on a robot that stays is refused and stays where
-        it is.  Return {robot: PlacementError} of those refused.
+        identity).  One whose pose is in a wall is refused first, then one on another's new pose
+        or on a robot that stays: it stays where it is.  Return {robot: PlacementError}.
         """
         refused = {}
         if self.walls is not None:
@@ -219,7 +218,9 @@ class World:
                         errors[i] = error
                 if not errors:
                     break
-                refused.update(errors)
+                # Not kept off a place that a robot refused for a wall will never take.
+                refused.update({i: e for i, e in errors.items() if self.walls.overlaps(
+                    *targets[i])} or errors)
         for i, pose in enumerate(poses):
             if i not in refused:
                 self.map_x[i] = self.map_y[i] = self.map_yaw[i] = 0.0
