@@ -127,8 +127,7 @@ class ParticipantHold:
     def __init__(self, context):
         use_package_profile()  # the holder is often the process's first participant
         self.name = HOLDER_NAME.format(pid=os.getpid(), suffix=secrets.token_hex(4))
-        self._holder = rclpy_implementation.Node(self.name, '', context.handle, None, False,
-                                                 False)
+        self._holder = rclpy_implementation.Node(self.name, '', context.handle, None, False, False)
 
     def release(self):
         """Detach the participant's listener, then destroy the holder (once; then a no-op)."""

@@ -50,8 +50,7 @@ class Spec:
     A default of None declares it without a value, ``kind`` naming its type.  ``low``/``high``
     bound numbers (and each element of a number array), ``low_open`` excludes ``low``;
     ``choices`` restricts strings, ``problem(value)`` says why one is unusable, or None (say
-    frame_problem: a tf2 frame id);
-    ``length`` fixes an array's size, ``items`` its elements'
+    frame_problem: a tf2 frame id); ``length`` fixes an array's size, ``items`` its elements'
     type (float or str); ``live`` lets it change while the node runs (else read-only).
     """
 

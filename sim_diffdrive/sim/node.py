@@ -171,8 +171,7 @@ class UnicycleSim(Node):
         self.step_ns = round(_NS / p.rate_hz)
         self.clock = make_clock(self, stepped)
         self.taps = open_taps(self)
-        self.robots = [Robot(self, i, name, self.take_command)
-                       for i, name in enumerate(names)]
+        self.robots = [Robot(self, i, name, self.take_command) for i, name in enumerate(names)]
         # A frame is checked against the other's value and the robots' prefixes, which a Spec
         # cannot know; added after declare()'s callbacks, this one runs before them.
         self.add_on_set_parameters_callback(self._refuse_bad_frames)

@@ -208,8 +208,7 @@ class World:
             targets = [(x, y) for x, y, _ in poses]
             while True:
                 mx, my, _ = self.map_poses()
-                where = [(mx[j], my[j]) if j in refused else targets[j]
-                         for j in range(len(self))]
+                where = [(mx[j], my[j]) if j in refused else targets[j] for j in range(len(self))]
                 errors = {}
                 for i in set(range(len(self))) - set(refused):
                     try:

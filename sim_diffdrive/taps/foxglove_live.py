@@ -92,8 +92,7 @@ class FoxgloveLive:
             return
         if msg_class is Path and not self._path_throttle.allows():  # the costliest message
             return
-        channel.log(msg if isinstance(msg, bytes) else serialize_message(msg),
-                    log_time=stamp_ns)
+        channel.log(msg if isinstance(msg, bytes) else serialize_message(msg), log_time=stamp_ns)
 
     def close(self):
         """Stop the server (idempotent)."""
@@ -126,8 +125,7 @@ def _odometry_fields(odom):
     if isinstance(odom, bytes):
         return read_odometry(odom)[1:5]
     p, q = odom.pose.pose.position, odom.pose.pose.orientation
-    return (odom.header.frame_id, odom.child_frame_id, (p.x, p.y, p.z),
-            (q.x, q.y, q.z, q.w))
+    return (odom.header.frame_id, odom.child_frame_id, (p.x, p.y, p.z), (q.x, q.y, q.z, q.w))
 
 
 def _timestamp(messages, stamp_ns):

@@ -108,8 +108,7 @@ class McapRecorder:
                 self._abandon()
                 raise
             self._file.close()
-            self._logger.info(
-                f'Wrote {self._count} messages to {os.path.abspath(self.path)}')
+            self._logger.info(f'Wrote {self._count} messages to {os.path.abspath(self.path)}')
 
     def _schema(self, message_class):
         name = type_name(message_class)

@@ -112,15 +112,13 @@ class BrowserView:
             self._closing.callback(self._rec.flush, timeout_sec=1.0)
             # Simulated time only: a wall-clock timeline would only show the frames' latency.
             rr.set_log_time_enabled(False, recording=self._rec)
-            self._rec.connect_grpc(self.grpc_url,
-                                   default_blueprint=_blueprint(node.world, grid))
+            self._rec.connect_grpc(self.grpc_url, default_blueprint=_blueprint(node.world, grid))
             self._log_static(node.world.names, grid)
         except BaseException:
             self.close()
             raise
         self._frames = _Frames(len(node.world.names), in_map=grid is not None)
-        self._thread = threading.Thread(target=self._send_frames, name='browser_view',
-                                        daemon=True)
+        self._thread = threading.Thread(target=self._send_frames, name='browser_view', daemon=True)
         self._thread.start()
         atexit.register(self.close)
         node.get_logger().info(f'Browser view: open {self.url}')
@@ -214,8 +212,7 @@ class BrowserView:
         count, zeros = len(x), np.zeros(len(x))
         positions = np.column_stack([x, y, zeros])
         quaternions = np.column_stack([zeros, zeros, np.sin(0.5 * yaw), np.cos(0.5 * yaw)])
-        rec.log('world/robots', rr.Boxes3D.from_fields(
-            centers=positions, quaternions=quaternions))
+        rec.log('world/robots', rr.Boxes3D.from_fields(centers=positions, quaternions=quaternions))
         heading = np.column_stack([ARROW_LENGTH * np.cos(yaw), ARROW_LENGTH * np.sin(yaw), zeros])
         rec.log('world/heading', rr.Arrows3D.from_fields(origins=positions, vectors=heading))
         if frame.strips is not None:

@@ -150,8 +150,7 @@ class _PageHandler(BaseHTTPRequestHandler):
         if path == '/' and 'url=' not in query:  # http://127.0.0.1:PORT/ opens this run
             self._send(302, [('Location', page_url(port, run[1]))], b'')
             return
-        upstream = http.client.HTTPConnection(
-            '127.0.0.1', self.server.upstream_port, timeout=10.0)
+        upstream = http.client.HTTPConnection('127.0.0.1', self.server.upstream_port, timeout=10.0)
         try:
             try:
                 upstream.request('GET', path)

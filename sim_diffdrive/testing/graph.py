@@ -166,8 +166,7 @@ class Lockstep:
         # Count traffic from here on: what was sent before the nodes matched may never arrive.
         now_ns = self.now_ns
         for node in self.nodes:
-            counter = self._counters[node] = MessageCounter.of(node, clock_topic(node),
-                                                               fixed=True)
+            counter = self._counters[node] = MessageCounter.of(node, clock_topic(node), fixed=True)
             counter.wrap_new()  # entities made since it was last looked at
             answer = self._answers.get(node)
             if answer is None:  # it joins
