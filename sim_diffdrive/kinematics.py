@@ -96,14 +96,17 @@ def arcs(linear, angular, target_linear, target_angular, max_linear_accel, max_a
     """
     while dt > 0.0:
         if linear != target_linear or angular != target_angular:
-            step = min(dt, ramp_step,
-                       _ramp_left(linear, target_linear, max_linear_accel),
-                       _ramp_left(angular, target_angular, max_angular_accel))
+            linear_left = _ramp_left(linear, target_linear, max_linear_accel)
+            angular_left = _ramp_left(angular, target_angular, max_angular_accel)
+            step = min(dt, ramp_step, linear_left, angular_left)
             held_linear = limit_command(target_linear, linear, 0.0, max_linear_accel, 0.5 * step)
             held_angular = limit_command(target_angular, angular, 0.0, max_angular_accel,
                                          0.5 * step)
-            linear = _ramped(linear, target_linear, max_linear_accel, step)
-            angular = _ramped(angular, target_angular, max_angular_accel, step)
+            # At a ramp's end the target itself, not a rounding short of it (a ramp of 1e-17).
+            linear = (target_linear if step >= linear_left
+                      else limit_command(target_linear, linear, 0.0, max_linear_accel, step))
+            angular = (target_angular if step >= angular_left
+                       else limit_command(target_angular, angular, 0.0, max_angular_accel, step))
             yield step, held_linear, held_angular, linear, angular
         else:
             step = dt
@@ -116,13 +119,6 @@ def _ramp_left(speed, target, max_accel):
     if speed == target or max_accel <= 0.0:
         return math.inf
     return abs(target - speed) / max_accel
-
-
-def _ramped(speed, target, max_accel, step):
-    """Return the speed after step seconds of ramping: the target itself once the ramp ends."""
-    if step >= _ramp_left(speed, target, max_accel):
-        return target  # not a rounding short of it, which would leave a ramp of 1e-17 to go
-    return limit_command(target, speed, 0.0, max_accel, step)
 
 
 class UnicycleModel:
