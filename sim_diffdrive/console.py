@@ -31,13 +31,18 @@ import sys
 import time
 
 SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
-_SAID = {signal.SIGTERM: 'Stopped by SIGTERM',
-         signal.SIGHUP: 'Stopped by SIGHUP (its terminal closed)'}
+_STOPPED_BY = {signal.SIGTERM: 'Stopped by SIGTERM',
+               signal.SIGHUP: 'Stopped by SIGHUP (its terminal closed)'}
 _received = []  # the signals noted since launch(), until runtime.run takes them (early_signal)
 
 
 def _note(signum, frame):
     _received.append(signum)
+
+
+def stopped_by(signum):
+    """Return what a run or a start ended by signum says (SIGTERM is not a user's Ctrl-C)."""
+    return _STOPPED_BY.get(signum, 'Interrupted by the user')
 
 
 def early_signal():
@@ -57,7 +62,7 @@ def launch(module, name):
         return main()
     for signum in SIGNALS:
         signal.signal(signum, signal.SIG_IGN)
-    said = _SAID.get(_received[0], 'Interrupted by the user')
+    said = stopped_by(_received[0])
     try:  # as rclpy logs (its logging is not set up yet); to a closed terminal: EIO
         print(f'[INFO] [{time.time():.9f}] [{name}]: {said} as it started', file=sys.stderr)
     except OSError:

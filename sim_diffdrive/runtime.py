@@ -35,6 +35,7 @@ from rclpy.impl.implementation_singleton import rclpy_implementation
 from rclpy.signals import SignalHandlerOptions
 from sim_diffdrive.console import early_signal
 from sim_diffdrive.console import SIGNALS
+from sim_diffdrive.console import stopped_by
 from sim_diffdrive.dds_profile import use_package_profile
 from sim_diffdrive.dds_teardown import ParticipantHold
 from sim_diffdrive.parameters import ParameterError
@@ -43,9 +44,6 @@ EXIT_OK = 0
 EXIT_FAILED = 1
 EXIT_USAGE = 2
 
-# What the run says when a signal ends it (any other: SIGINT).
-_STOPPED_BY = {signal.SIGTERM: 'Stopped by SIGTERM',
-               signal.SIGHUP: 'Stopped by SIGHUP (its terminal closed)'}
 # Bounds how long a signal waits for Python's handler while the executor sleeps in rcl.
 _SPIN_TIMEOUT = 0.1
 # How long destroying the nodes and shutting rclpy down may take [s] before the process ends
@@ -160,7 +158,7 @@ def run(make_node, args=None, name='motion_challenges'):
         exit_code = EXIT_USAGE
     except KeyboardInterrupt:
         # SIGTERM is how a launch file, systemd or `kill` stops a process, not a user's Ctrl-C.
-        logger.info(_STOPPED_BY.get(interrupts.signum, 'Interrupted by the user'))
+        logger.info(stopped_by(interrupts.signum))
         # A motion that had already failed before the interrupt still fails the run.
         exit_code = worst_exit_code([n for n in nodes if getattr(n, 'done', False)])
     except ExternalShutdownException:
